@@ -1,0 +1,151 @@
+#include "common/tet_mesh_io.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cstdio>
+#include <map>
+#include <sstream>
+
+namespace rheo {
+namespace {
+
+// Finds the text of the <DataArray ... Name="name" ...> element inside `section`.
+std::string_view FindArray(std::string_view doc, std::string_view section, std::string_view name) {
+  size_t s = doc.find("<" + std::string(section));
+  if (s == std::string_view::npos) return {};
+  size_t e = doc.find("</" + std::string(section), s);
+  if (e == std::string_view::npos) return {};
+  std::string_view body = doc.substr(s, e - s);
+  size_t pos = 0;
+  while ((pos = body.find("<DataArray", pos)) != std::string_view::npos) {
+    size_t tag_end = body.find('>', pos);
+    if (tag_end == std::string_view::npos) return {};
+    std::string_view tag = body.substr(pos, tag_end - pos);
+    bool named = name.empty() || tag.find("Name=\"" + std::string(name) + "\"") != std::string_view::npos;
+    size_t close = body.find("</DataArray>", tag_end);
+    if (close == std::string_view::npos) return {};
+    if (named) {
+      if (tag.find("format=\"binary\"") != std::string_view::npos ||
+          tag.find("format=\"appended\"") != std::string_view::npos)
+        return "binary";
+      return body.substr(tag_end + 1, close - tag_end - 1);
+    }
+    pos = close;
+  }
+  return {};
+}
+
+template <typename T>
+bool ParseNumbers(std::string_view text, std::vector<T>& out) {
+  const char* p = text.data();
+  const char* end = p + text.size();
+  while (p < end) {
+    while (p < end && (*p == ' ' || *p == '\n' || *p == '\r' || *p == '\t')) ++p;
+    if (p >= end) break;
+    T v{};
+    auto [next, ec] = std::from_chars(p, end, v);
+    if (ec != std::errc()) return false;
+    out.push_back(v);
+    p = next;
+  }
+  return true;
+}
+
+double Orientation(const TetMesh& m, const std::array<int32_t, 4>& t) {
+  const Vec3& a = m.positions[t[0]];
+  return (m.positions[t[1]] - a).dot((m.positions[t[2]] - a).cross(m.positions[t[3]] - a));
+}
+
+}  // namespace
+
+std::string WriteVtu(const TetMesh& mesh) {
+  std::ostringstream os;
+  os.precision(17);
+  os << "<?xml version=\"1.0\"?>\n"
+     << "<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+     << "  <UnstructuredGrid>\n"
+     << "    <Piece NumberOfPoints=\"" << mesh.positions.size() << "\" NumberOfCells=\""
+     << mesh.tets.size() << "\">\n"
+     << "      <Points>\n"
+     << "        <DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  for (const Vec3& p : mesh.positions) os << "          " << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  os << "        </DataArray>\n      </Points>\n      <Cells>\n"
+     << "        <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
+  for (const auto& t : mesh.tets) os << "          " << t[0] << ' ' << t[1] << ' ' << t[2] << ' ' << t[3] << '\n';
+  os << "        </DataArray>\n"
+     << "        <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
+  for (size_t i = 0; i < mesh.tets.size(); ++i) os << "          " << 4 * (i + 1) << '\n';
+  os << "        </DataArray>\n"
+     << "        <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
+  for (size_t i = 0; i < mesh.tets.size(); ++i) os << "          10\n";
+  os << "        </DataArray>\n      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n";
+  return os.str();
+}
+
+Result<TetMesh> ReadVtu(std::string_view text) {
+  if (text.find("UnstructuredGrid") == std::string_view::npos)
+    return InvalidArgument("not a VTK UnstructuredGrid (.vtu) file");
+  std::string_view pts = FindArray(text, "Points", "");
+  std::string_view conn = FindArray(text, "Cells", "connectivity");
+  std::string_view offs = FindArray(text, "Cells", "offsets");
+  std::string_view types = FindArray(text, "Cells", "types");
+  if (pts.empty() || conn.empty() || offs.empty() || types.empty())
+    return InvalidArgument(".vtu file lacks Points or Cells (connectivity, offsets, types)");
+  if (pts == "binary" || conn == "binary" || offs == "binary" || types == "binary")
+    return InvalidArgument(".vtu file uses binary or appended data; only ASCII is read");
+  std::vector<double> xyz;
+  std::vector<int64_t> c, o, ty;
+  if (!ParseNumbers(pts, xyz) || !ParseNumbers(conn, c) || !ParseNumbers(offs, o) ||
+      !ParseNumbers(types, ty))
+    return InvalidArgument(".vtu file has a malformed number in its data arrays");
+  if (xyz.size() % 3 != 0) return InvalidArgument(".vtu Points count is not a multiple of 3");
+  if (o.size() != ty.size()) return InvalidArgument(".vtu offsets and types differ in length");
+  TetMesh mesh;
+  const size_t n = xyz.size() / 3;
+  mesh.positions.reserve(n);
+  for (size_t i = 0; i < n; ++i) mesh.positions.emplace_back(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+  int64_t prev = 0;
+  for (size_t i = 0; i < o.size(); ++i) {
+    if (ty[i] != 10)
+      return InvalidArgument("cell " + std::to_string(i) + " has VTK type " + std::to_string(ty[i]) +
+                             "; only tetrahedra (type 10) are supported");
+    if (o[i] != prev + 4 || o[i] > static_cast<int64_t>(c.size()))
+      return InvalidArgument("cell " + std::to_string(i) + " has a bad offset");
+    std::array<int32_t, 4> t;
+    for (int k = 0; k < 4; ++k) {
+      int64_t v = c[prev + k];
+      if (v < 0 || v >= static_cast<int64_t>(n))
+        return InvalidArgument("cell " + std::to_string(i) + " refers to point " + std::to_string(v) +
+                               " of " + std::to_string(n));
+      t[k] = static_cast<int32_t>(v);
+    }
+    prev = o[i];
+    if (Orientation(mesh, t) < 0) std::swap(t[2], t[3]);
+    mesh.tets.push_back(t);
+  }
+  if (mesh.tets.empty()) return InvalidArgument(".vtu file holds no tetrahedra");
+  ComputeBoundary(mesh);
+  return mesh;
+}
+
+void ComputeBoundary(TetMesh& mesh) {
+  // Faces of a positively oriented tet (a,b,c,d), outward: (b,c,d) (a,d,c) (a,b,d) (a,c,b).
+  std::map<std::array<int32_t, 3>, std::pair<int, std::array<int32_t, 3>>> faces;
+  for (const auto& t : mesh.tets) {
+    const std::array<std::array<int32_t, 3>, 4> f = {{{t[1], t[2], t[3]},
+                                                      {t[0], t[3], t[2]},
+                                                      {t[0], t[1], t[3]},
+                                                      {t[0], t[2], t[1]}}};
+    for (const auto& face : f) {
+      auto key = face;
+      std::sort(key.begin(), key.end());
+      auto [it, inserted] = faces.try_emplace(key, 0, face);
+      ++it->second.first;
+    }
+  }
+  mesh.surface.clear();
+  for (const auto& [key, v] : faces)
+    if (v.first == 1) mesh.surface.push_back(v.second);
+}
+
+}  // namespace rheo
