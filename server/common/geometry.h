@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -18,16 +19,16 @@ struct Polygon2 {
 
 /// A triangle surface: indices into positions, counter-clockwise seen from outside.
 struct TriSurface {
-  std::vector<Vec3> positions;                   // vertex positions (n) [m]
+  std::vector<Vec3> positions;                    // vertex positions (n) [m]
   std::vector<std::array<int32_t, 3>> triangles;  // faces (m), outward by right-hand rule
 };
 
 /// A tetrahedral mesh with its boundary surface. Every tetrahedron is positively oriented:
 /// (p1-p0) . ((p2-p0) x (p3-p0)) > 0.
 struct TetMesh {
-  std::vector<Vec3> positions;                        // vertex positions (n) [m]
-  std::vector<std::array<int32_t, 4>> tets;           // tetrahedra (m)
-  std::vector<std::array<int32_t, 3>> surface;        // boundary faces (k), outward
+  std::vector<Vec3> positions;                  // vertex positions (n) [m]
+  std::vector<std::array<int32_t, 4>> tets;     // tetrahedra (m)
+  std::vector<std::array<int32_t, 3>> surface;  // boundary faces (k), outward
 };
 
 }  // namespace rheo

@@ -30,23 +30,31 @@ struct Error {
   std::string message;
 };
 
-inline Error InvalidArgument(std::string m) { return {ErrorCode::kInvalidArgument, std::move(m)}; }
+inline Error InvalidArgument(std::string m) {
+  return {ErrorCode::kInvalidArgument, std::move(m)};
+}
 inline Error ResourceExhausted(std::string m) {
   return {ErrorCode::kResourceExhausted, std::move(m)};
 }
-inline Error NotFound(std::string m) { return {ErrorCode::kNotFound, std::move(m)}; }
+inline Error NotFound(std::string m) {
+  return {ErrorCode::kNotFound, std::move(m)};
+}
 inline Error FailedPrecondition(std::string m) {
   return {ErrorCode::kFailedPrecondition, std::move(m)};
 }
-inline Error Cancelled(std::string m) { return {ErrorCode::kCancelled, std::move(m)}; }
-inline Error Internal(std::string m) { return {ErrorCode::kInternal, std::move(m)}; }
+inline Error Cancelled(std::string m) {
+  return {ErrorCode::kCancelled, std::move(m)};
+}
+inline Error Internal(std::string m) {
+  return {ErrorCode::kInternal, std::move(m)};
+}
 
 /// Holds either a value or an Error. Cheap to move; check ok() before value().
 template <typename T>
 class Result {
  public:
-  Result(T value) : v_(std::move(value)) {}       // NOLINT: implicit by design
-  Result(Error error) : v_(std::move(error)) {}   // NOLINT: implicit by design
+  Result(T value) : v_(std::move(value)) {}      // NOLINT: implicit by design
+  Result(Error error) : v_(std::move(error)) {}  // NOLINT: implicit by design
 
   bool ok() const { return std::holds_alternative<T>(v_); }
   explicit operator bool() const { return ok(); }

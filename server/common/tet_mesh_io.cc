@@ -21,7 +21,8 @@ std::string_view FindArray(std::string_view doc, std::string_view section, std::
     size_t tag_end = body.find('>', pos);
     if (tag_end == std::string_view::npos) return {};
     std::string_view tag = body.substr(pos, tag_end - pos);
-    bool named = name.empty() || tag.find("Name=\"" + std::string(name) + "\"") != std::string_view::npos;
+    bool named =
+        name.empty() || tag.find("Name=\"" + std::string(name) + "\"") != std::string_view::npos;
     size_t close = body.find("</DataArray>", tag_end);
     if (close == std::string_view::npos) return {};
     if (named) {
@@ -68,10 +69,12 @@ std::string WriteVtu(const TetMesh& mesh) {
      << mesh.tets.size() << "\">\n"
      << "      <Points>\n"
      << "        <DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  for (const Vec3& p : mesh.positions) os << "          " << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+  for (const Vec3& p : mesh.positions)
+    os << "          " << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
   os << "        </DataArray>\n      </Points>\n      <Cells>\n"
      << "        <DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
-  for (const auto& t : mesh.tets) os << "          " << t[0] << ' ' << t[1] << ' ' << t[2] << ' ' << t[3] << '\n';
+  for (const auto& t : mesh.tets)
+    os << "          " << t[0] << ' ' << t[1] << ' ' << t[2] << ' ' << t[3] << '\n';
   os << "        </DataArray>\n"
      << "        <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
   for (size_t i = 0; i < mesh.tets.size(); ++i) os << "          " << 4 * (i + 1) << '\n';
@@ -103,20 +106,21 @@ Result<TetMesh> ReadVtu(std::string_view text) {
   TetMesh mesh;
   const size_t n = xyz.size() / 3;
   mesh.positions.reserve(n);
-  for (size_t i = 0; i < n; ++i) mesh.positions.emplace_back(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+  for (size_t i = 0; i < n; ++i)
+    mesh.positions.emplace_back(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
   int64_t prev = 0;
   for (size_t i = 0; i < o.size(); ++i) {
     if (ty[i] != 10)
-      return InvalidArgument("cell " + std::to_string(i) + " has VTK type " + std::to_string(ty[i]) +
-                             "; only tetrahedra (type 10) are supported");
+      return InvalidArgument("cell " + std::to_string(i) + " has VTK type " +
+                             std::to_string(ty[i]) + "; only tetrahedra (type 10) are supported");
     if (o[i] != prev + 4 || o[i] > static_cast<int64_t>(c.size()))
       return InvalidArgument("cell " + std::to_string(i) + " has a bad offset");
     std::array<int32_t, 4> t;
     for (int k = 0; k < 4; ++k) {
       int64_t v = c[prev + k];
       if (v < 0 || v >= static_cast<int64_t>(n))
-        return InvalidArgument("cell " + std::to_string(i) + " refers to point " + std::to_string(v) +
-                               " of " + std::to_string(n));
+        return InvalidArgument("cell " + std::to_string(i) + " refers to point " +
+                               std::to_string(v) + " of " + std::to_string(n));
       t[k] = static_cast<int32_t>(v);
     }
     prev = o[i];
@@ -132,10 +136,8 @@ void ComputeBoundary(TetMesh& mesh) {
   // Faces of a positively oriented tet (a,b,c,d), outward: (b,c,d) (a,d,c) (a,b,d) (a,c,b).
   std::map<std::array<int32_t, 3>, std::pair<int, std::array<int32_t, 3>>> faces;
   for (const auto& t : mesh.tets) {
-    const std::array<std::array<int32_t, 3>, 4> f = {{{t[1], t[2], t[3]},
-                                                      {t[0], t[3], t[2]},
-                                                      {t[0], t[1], t[3]},
-                                                      {t[0], t[2], t[1]}}};
+    const std::array<std::array<int32_t, 3>, 4> f = {
+        {{t[1], t[2], t[3]}, {t[0], t[3], t[2]}, {t[0], t[1], t[3]}, {t[0], t[2], t[1]}}};
     for (const auto& face : f) {
       auto key = face;
       std::sort(key.begin(), key.end());

@@ -30,7 +30,9 @@ int64_t Loop::NowNs() {
 
 Loop::Loop(LoopOptions options, TickFn tick) : options_(options), tick_(std::move(tick)) {}
 
-Loop::~Loop() { Stop(); }
+Loop::~Loop() {
+  Stop();
+}
 
 void Loop::Start() {
   if (running_.load()) return;
@@ -97,7 +99,8 @@ void Loop::Run() {
     if (prev_start != 0) stats_.period.Add(start - prev_start);
     const int64_t latency = start - deadline;
     stats_.wake_latency.Add(latency);
-    if (latency >= options_.late_threshold_ns) stats_.late_ticks.fetch_add(1, std::memory_order_relaxed);
+    if (latency >= options_.late_threshold_ns)
+      stats_.late_ticks.fetch_add(1, std::memory_order_relaxed);
     prev_start = start;
     last_tick_ns_.store(start, std::memory_order_relaxed);
 

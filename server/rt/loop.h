@@ -13,10 +13,10 @@ namespace rheo::rt {
 
 /// What the loop passes to the tick function.
 struct TickInfo {
-  uint64_t tick = 0;          // index of this tick, from 0
-  int64_t deadline_ns = 0;    // CLOCK_MONOTONIC time this tick was due [ns]
-  int64_t start_ns = 0;       // when it actually started [ns]
-  double dt = 0.0;            // nominal period [s]
+  uint64_t tick = 0;        // index of this tick, from 0
+  int64_t deadline_ns = 0;  // CLOCK_MONOTONIC time this tick was due [ns]
+  int64_t start_ns = 0;     // when it actually started [ns]
+  double dt = 0.0;          // nominal period [s]
 };
 
 /// Timing statistics, readable from any thread while the loop runs.
@@ -31,12 +31,12 @@ struct LoopStats {
 };
 
 struct LoopOptions {
-  int64_t period_ns = 1'000'000;       // 1 kHz
+  int64_t period_ns = 1'000'000;          // 1 kHz
   int64_t late_threshold_ns = 1'000'000;  // a tick that starts a whole period late is late
-  bool realtime_priority = true;       // try SCHED_FIFO
-  int priority = 80;                   // SCHED_FIFO priority when permitted
-  bool lock_memory = true;             // try mlockall
-  int cpu = -1;                        // pin to this CPU when >= 0
+  bool realtime_priority = true;          // try SCHED_FIFO
+  int priority = 80;                      // SCHED_FIFO priority when permitted
+  bool lock_memory = true;                // try mlockall
+  int cpu = -1;                           // pin to this CPU when >= 0
 };
 
 /// What the loop could get from the OS, for a log line by the owner (the loop itself never logs).

@@ -43,9 +43,9 @@ class TripleBuffer {
   static constexpr uint32_t kFresh = 4;
   static constexpr uint32_t kIndex = 3;
   std::array<T, 3> slots_{};
-  uint32_t back_ = 0;                      // writer-owned
-  uint32_t front_ = 1;                     // reader-owned
-  std::atomic<uint32_t> middle_{2};        // shared: index | kFresh
+  uint32_t back_ = 0;                // writer-owned
+  uint32_t front_ = 1;               // reader-owned
+  std::atomic<uint32_t> middle_{2};  // shared: index | kFresh
 };
 
 }  // namespace rheo::rt

@@ -1,0 +1,185 @@
+// rheod: the Rheo daemon. Owns the 1 kHz loop (and later the device and the scene), serves the
+// rheo.v1 gRPC API, and shuts down cleanly on SIGINT/SIGTERM.
+#include <fcntl.h>
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <filesystem>
+
+#include "daemon/engine.h"
+#include "daemon/frame_hub.h"
+#include "daemon/services.h"
+
+#ifndef RHEO_VERSION
+#define RHEO_VERSION "0.0.0"
+#endif
+
+namespace {
+
+struct Flags {
+  std::string listen = "127.0.0.1:50051";
+  std::string data_dir;
+  std::string device = "none";
+  std::string log_level = "info";
+  double rate_hz = 1000.0;
+  bool realtime = true;
+};
+
+// Holds an exclusive lock on the data directory so two daemons never share one store.
+class DataDirLock {
+ public:
+  bool Acquire(const std::filesystem::path& dir, std::string& error) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) {
+      error = "cannot create data directory " + dir.string() + ": " + ec.message();
+      return false;
+    }
+    const std::string path = (dir / "rheod.lock").string();
+    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0) {
+      error = "cannot open " + path + ": " + std::strerror(errno);
+      return false;
+    }
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      error = "data directory " + dir.string() + " is in use by another rheod (lock " + path + ")";
+      return false;
+    }
+    std::string pid = std::to_string(::getpid()) + "\n";
+    if (::ftruncate(fd_, 0) != 0 || ::write(fd_, pid.data(), pid.size()) < 0) {
+      // The lock is what matters; the pid is informational.
+    }
+    return true;
+  }
+  ~DataDirLock() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+
+ private:
+  int fd_ = -1;
+};
+
+std::string DefaultDataDir() {
+  if (const char* x = std::getenv("XDG_DATA_HOME"); x && *x) return std::string(x) + "/rheo";
+  if (const char* h = std::getenv("HOME"); h && *h) return std::string(h) + "/.local/share/rheo";
+  return "./rheo-data";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Flags flags;
+  CLI::App app{"rheod: the Rheo haptics daemon (sketch -> soft solid -> touch)"};
+  app.set_config("--config", "", "TOML or INI file with the same keys as the long flags");
+  app.add_option("--listen", flags.listen, "gRPC listen address host:port (port 0 = any free)")
+      ->capture_default_str();
+  app.add_option("--data-dir", flags.data_dir, "where objects and recordings are stored")
+      ->default_str("$XDG_DATA_HOME/rheo");
+  app.add_option("--device", flags.device, "haptic device")
+      ->check(CLI::IsMember({"none"}))
+      ->capture_default_str();
+  app.add_option("--log-level", flags.log_level, "trace, debug, info, warn, error")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
+      ->capture_default_str();
+  app.add_option("--rate", flags.rate_hz, "loop rate [Hz]")
+      ->check(CLI::Range(100.0, 4000.0))
+      ->capture_default_str();
+  app.add_flag("!--no-realtime", flags.realtime, "do not ask for SCHED_FIFO and locked memory");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  auto logger = spdlog::stderr_color_mt("rheod");
+  spdlog::set_default_logger(logger);
+  spdlog::set_level(spdlog::level::from_str(flags.log_level));
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
+
+  if (flags.data_dir.empty()) flags.data_dir = DefaultDataDir();
+  DataDirLock lock;
+  if (std::string err; !lock.Acquire(flags.data_dir, err)) {
+    spdlog::error("{}", err);
+    return 1;
+  }
+
+  using namespace rheo::daemon;
+  EngineOptions eopts;
+  eopts.loop.period_ns = static_cast<int64_t>(1e9 / flags.rate_hz);
+  eopts.loop.realtime_priority = flags.realtime;
+  eopts.loop.lock_memory = flags.realtime;
+  Engine engine(eopts);
+  engine.Start();
+  const auto& env = engine.loop().environment();
+  spdlog::info("loop running at {:.0f} Hz (SCHED_FIFO {}, memory locked {})", flags.rate_hz,
+               env.realtime ? "yes" : "no", env.memory_locked ? "yes" : "no");
+  if (!env.notes.empty()) spdlog::warn("loop: {}", env.notes);
+
+  FrameHub hub(engine);
+  hub.Start();
+
+  std::atomic<bool> shutting_down{false};
+  DaemonContext ctx;
+  ctx.engine = &engine;
+  ctx.hub = &hub;
+  ctx.version = RHEO_VERSION;
+  ctx.data_dir = flags.data_dir;
+  ctx.device = rheo::v1::DEVICE_KIND_NONE;
+  ctx.started = std::chrono::steady_clock::now();
+  ctx.shutting_down = &shutting_down;
+
+  DaemonServiceImpl daemon_service(ctx);
+  FrameServiceImpl frame_service(ctx);
+  SceneServiceImpl scene_service(ctx);
+  ObjectServiceImpl object_service(ctx);
+  DeviceServiceImpl device_service(ctx);
+
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort(flags.listen, grpc::InsecureServerCredentials(), &port);
+  builder.SetMaxReceiveMessageSize(64 << 20);
+  builder.RegisterService(&daemon_service);
+  builder.RegisterService(&frame_service);
+  builder.RegisterService(&scene_service);
+  builder.RegisterService(&object_service);
+  builder.RegisterService(&device_service);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  if (!server || port == 0) {
+    spdlog::error("cannot listen on {}: address in use or invalid", flags.listen);
+    hub.Stop();
+    engine.Stop();
+    return 1;
+  }
+  std::string host = flags.listen.substr(0, flags.listen.rfind(':'));
+  ctx.listen_address = host + ":" + std::to_string(port);
+  spdlog::info("rheod {} listening on {} (data dir {}, device {})", RHEO_VERSION,
+               ctx.listen_address, flags.data_dir, flags.device);
+
+  boost::asio::io_context io;
+  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
+  signals.async_wait([&](const boost::system::error_code&, int signo) {
+    spdlog::info("signal {} received, shutting down", signo);
+    shutting_down.store(true);
+    server->GetHealthCheckService()->SetServingStatus(false);
+    hub.Stop();  // open frame streams end with UNAVAILABLE
+    server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(1500));
+  });
+  io.run();
+  server->Wait();
+  engine.Stop();
+  const auto& s = engine.loop().stats();
+  spdlog::info("stopped after {} ticks ({} late, period p99 {:.1f} us)", s.ticks.load(),
+               s.late_ticks.load(), s.period.Quantile(0.99) / 1e3);
+  return 0;
+}

@@ -1,0 +1,260 @@
+#include "daemon/services.h"
+
+#include <google/protobuf/util/time_util.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "daemon/grpc_status.h"
+
+namespace rheo::daemon {
+namespace {
+
+void FillPercentiles(const rt::Histogram& h, v1::Percentiles* out) {
+  out->set_p50_us(h.Quantile(0.5) / 1e3);
+  out->set_p99_us(h.Quantile(0.99) / 1e3);
+  out->set_p999_us(h.Quantile(0.999) / 1e3);
+  out->set_max_us(h.max_ns() / 1e3);
+  out->set_mean_us(h.mean_ns() / 1e3);
+  out->set_count(h.count());
+}
+
+grpc::Status ShuttingDown() {
+  return grpc::Status(grpc::StatusCode::UNAVAILABLE, "rheod is shutting down");
+}
+
+}  // namespace
+
+// ---- DaemonService ----
+
+grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetStatusRequest*,
+                                          v1::DaemonStatus* out) {
+  const rt::Loop& loop = ctx_.engine->loop();
+  const rt::LoopStats& s = loop.stats();
+  out->set_version(ctx_.version);
+  out->set_uptime_s(
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - ctx_.started).count());
+  out->set_listen_address(ctx_.listen_address);
+  out->set_data_dir(ctx_.data_dir);
+  v1::LoopStatus* l = out->mutable_loop();
+  l->set_rate_hz(1e9 / static_cast<double>(loop.options().period_ns));
+  l->set_ticks(s.ticks.load());
+  l->set_late_ticks(s.late_ticks.load());
+  l->set_overruns(s.overruns.load());
+  l->set_skipped_ticks(s.skipped_ticks.load());
+  FillPercentiles(s.period, l->mutable_period());
+  FillPercentiles(s.wake_latency, l->mutable_wake_latency());
+  FillPercentiles(s.work, l->mutable_work());
+  l->set_realtime_priority(loop.environment().realtime);
+  l->set_memory_locked(loop.environment().memory_locked);
+  l->set_notes(loop.environment().notes);
+  l->set_commands_applied(ctx_.engine->commands_applied());
+  l->set_commands_rejected(ctx_.engine->commands_rejected());
+  out->set_device(ctx_.device);
+  out->set_frame_clients(static_cast<uint32_t>(ctx_.hub->clients()));
+  out->add_capabilities("loop");
+  out->add_capabilities("frames");
+  return grpc::Status::OK;
+}
+
+// ---- FrameService ----
+
+grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
+                                           const v1::WatchFramesRequest* request,
+                                           grpc::ServerWriter<v1::Frame>* writer) {
+  double rate = request->rate_hz() == 0 ? 60.0 : request->rate_hz();
+  if (!(rate >= 1.0 && rate <= 1000.0))
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        "rate_hz must be between 1 and 1000 (0 means 60); got " +
+                            std::to_string(request->rate_hz()));
+  FrameHub& hub = *ctx_.hub;
+  if (hub.stopping()) return ShuttingDown();
+  const int handle = hub.Register(rate);
+  struct Unreg {
+    FrameHub& h;
+    int id;
+    ~Unreg() { h.Unregister(id); }
+  } unreg{hub, handle};
+
+  using Clock = std::chrono::steady_clock;
+  const auto period = std::chrono::nanoseconds(static_cast<int64_t>(1e9 / rate));
+  auto due = Clock::now();
+  uint64_t last_seq = 0;
+  uint64_t sent = 0;
+  uint64_t revision_sent = 0;
+  uint64_t dropped = 0;
+  v1::Frame frame;
+  while (request->max_frames() == 0 || sent < request->max_frames()) {
+    auto snap = hub.WaitNewer(last_seq, Clock::now() + std::chrono::seconds(5),
+                              [&] { return context->IsCancelled(); });
+    if (context->IsCancelled())
+      return grpc::Status(grpc::StatusCode::CANCELLED, "client cancelled");
+    if (hub.stopping()) return ShuttingDown();
+    if (!snap) continue;
+    last_seq = snap->seq;
+    const LoopFrame& f = snap->frame;
+    frame.Clear();
+    frame.mutable_stamp()->set_tick(f.tick);
+    frame.mutable_stamp()->set_sim_time(f.sim_time);
+    *frame.mutable_stamp()->mutable_wall_time() =
+        google::protobuf::util::TimeUtil::GetCurrentTime();
+    frame.set_paused(f.paused);
+    frame.set_topology_revision(f.scene_revision);
+    if (f.scene_revision != revision_sent)
+      revision_sent = f.scene_revision;  // topology: no objects yet
+    frame.mutable_loop()->set_ticks(f.ticks);
+    frame.mutable_loop()->set_late_ticks(f.late_ticks);
+    frame.mutable_loop()->set_last_work_us(f.work_ns / 1e3);
+    frame.set_dropped_frames(dropped);
+    if (!writer->Write(frame)) return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
+    ++sent;
+    // Pace to the client's rate; frames that a slow client could not take are counted, not queued.
+    due += period;
+    auto now = Clock::now();
+    if (now > due + period) {
+      dropped = static_cast<uint64_t>((now - due) / period);
+      due = now;
+    } else {
+      dropped = 0;
+      std::this_thread::sleep_until(due);
+    }
+  }
+  return grpc::Status::OK;
+}
+
+// ---- SceneService ----
+
+grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetSceneRequest*,
+                                        v1::Scene* out) {
+  out->set_paused(ctx_.engine->paused());
+  out->set_sim_time(ctx_.engine->sim_time());
+  out->set_gravity(9.81);
+  out->set_floor_height(0.0);
+  return grpc::Status::OK;
+}
+
+grpc::Status SceneServiceImpl::AddToScene(grpc::ServerContext*, const v1::AddToSceneRequest*,
+                                          v1::SceneObject*) {
+  return NotYet("AddToScene (needs the simulation library)");
+}
+grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
+                                               const v1::RemoveFromSceneRequest*,
+                                               v1::RemoveFromSceneResponse*) {
+  return NotYet("RemoveFromScene (needs the simulation library)");
+}
+grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*, const v1::SetParametersRequest*,
+                                             v1::SetParametersResponse*) {
+  return NotYet("SetParameters (needs the simulation library)");
+}
+grpc::Status SceneServiceImpl::ListParameters(grpc::ServerContext*,
+                                              const v1::ListParametersRequest*,
+                                              v1::ListParametersResponse*) {
+  return NotYet("ListParameters (needs the simulation library)");
+}
+
+grpc::Status SceneServiceImpl::Control(grpc::ServerContext*, const v1::ControlRequest* request,
+                                       v1::ControlResponse* out) {
+  Command c;
+  switch (request->command()) {
+    case v1::RUN_COMMAND_PAUSE: c.type = Command::Type::kPause; break;
+    case v1::RUN_COMMAND_RESUME: c.type = Command::Type::kResume; break;
+    case v1::RUN_COMMAND_RESET: c.type = Command::Type::kReset; break;
+    case v1::RUN_COMMAND_STEP:
+      if (!ctx_.engine->paused())
+        return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                            "STEP advances one tick of a paused scene; pause it first");
+      c.type = Command::Type::kStep;
+      break;
+    default:
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          "command must be PAUSE, RESUME, RESET or STEP");
+  }
+  uint64_t seq = ctx_.engine->Submit(c);
+  if (seq == 0)
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        "the loop's command queue (1024 entries) is full; retry shortly");
+  if (!ctx_.engine->WaitApplied(seq, 1'000'000'000))
+    return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                        "the loop did not take the command within 1 s");
+  out->set_paused(ctx_.engine->paused());
+  out->set_sim_time(ctx_.engine->sim_time());
+  return grpc::Status::OK;
+}
+
+// ---- ObjectService ----
+
+grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext*, const v1::CreateObjectRequest*,
+                                             grpc::ServerWriter<v1::CreateObjectProgress>*) {
+  return NotYet("CreateObject (sketch to solid)");
+}
+grpc::Status ObjectServiceImpl::CancelJob(grpc::ServerContext*, const v1::CancelJobRequest*,
+                                          v1::CancelJobResponse*) {
+  return NotYet("CancelJob (sketch to solid jobs)");
+}
+grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext*,
+                                               const v1::ExtractContourRequest*,
+                                               v1::ContourReport*) {
+  return NotYet("ExtractContour (the sketch stage)");
+}
+grpc::Status ObjectServiceImpl::ListObjects(grpc::ServerContext*, const v1::ListObjectsRequest*,
+                                            v1::ListObjectsResponse*) {
+  return NotYet("ListObjects (the object store)");
+}
+grpc::Status ObjectServiceImpl::GetObject(grpc::ServerContext*, const v1::GetObjectRequest*,
+                                          v1::Object*) {
+  return NotYet("GetObject (the object store)");
+}
+grpc::Status ObjectServiceImpl::DeleteObject(grpc::ServerContext*, const v1::DeleteObjectRequest*,
+                                             v1::DeleteObjectResponse*) {
+  return NotYet("DeleteObject (the object store)");
+}
+grpc::Status ObjectServiceImpl::ExportObject(grpc::ServerContext*, const v1::ExportObjectRequest*,
+                                             grpc::ServerWriter<v1::ExportChunk>*) {
+  return NotYet("ExportObject (the object store)");
+}
+
+// ---- DeviceService ----
+
+grpc::Status DeviceServiceImpl::GetDeviceStatus(grpc::ServerContext*,
+                                                const v1::GetDeviceStatusRequest*,
+                                                v1::DeviceStatus* out) {
+  out->set_kind(ctx_.device);
+  out->set_model("none");
+  out->set_connected(false);
+  return grpc::Status::OK;
+}
+
+namespace {
+grpc::Status NoDevice() {
+  return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                      "no haptic device is attached: start rheod with --device sim-spidar-g, "
+                      "spidar-g or network");
+}
+}  // namespace
+
+grpc::Status DeviceServiceImpl::Calibrate(grpc::ServerContext*, const v1::CalibrateRequest*,
+                                          v1::CalibrateResponse*) {
+  return NoDevice();
+}
+grpc::Status DeviceServiceImpl::AcquireLease(grpc::ServerContext*, const v1::AcquireLeaseRequest*,
+                                             v1::Lease*) {
+  return NoDevice();
+}
+grpc::Status DeviceServiceImpl::RenewLease(grpc::ServerContext*, const v1::RenewLeaseRequest*,
+                                           v1::Lease*) {
+  return NoDevice();
+}
+grpc::Status DeviceServiceImpl::ReleaseLease(grpc::ServerContext*, const v1::ReleaseLeaseRequest*,
+                                             v1::ReleaseLeaseResponse*) {
+  return NoDevice();
+}
+grpc::Status DeviceServiceImpl::EmergencyStop(grpc::ServerContext*, const v1::EmergencyStopRequest*,
+                                              v1::EmergencyStopResponse*) {
+  return NoDevice();
+}
+grpc::Status DeviceServiceImpl::ToolStream(
+    grpc::ServerContext*, grpc::ServerReaderWriter<v1::ToolFeedback, v1::ToolInput>*) {
+  return NoDevice();
+}
+
+}  // namespace rheo::daemon

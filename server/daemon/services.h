@@ -1,0 +1,111 @@
+// gRPC service implementations. They validate, translate and queue; the work happens elsewhere.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <string>
+
+#include "daemon/engine.h"
+#include "daemon/frame_hub.h"
+#include "rheo/v1/daemon.grpc.pb.h"
+#include "rheo/v1/device.grpc.pb.h"
+#include "rheo/v1/frames.grpc.pb.h"
+#include "rheo/v1/objects.grpc.pb.h"
+#include "rheo/v1/scene.grpc.pb.h"
+
+namespace rheo::daemon {
+
+/// What the services share: set once at startup, read-only afterwards.
+struct DaemonContext {
+  Engine* engine = nullptr;
+  FrameHub* hub = nullptr;
+  std::string version;
+  std::string listen_address;
+  std::string data_dir;
+  v1::DeviceKind device = v1::DEVICE_KIND_NONE;
+  std::chrono::steady_clock::time_point started;
+  std::atomic<bool>* shutting_down = nullptr;
+};
+
+class DaemonServiceImpl final : public v1::DaemonService::Service {
+ public:
+  explicit DaemonServiceImpl(const DaemonContext& ctx) : ctx_(ctx) {}
+  grpc::Status GetStatus(grpc::ServerContext*, const v1::GetStatusRequest*,
+                         v1::DaemonStatus* out) override;
+
+ private:
+  const DaemonContext& ctx_;
+};
+
+class FrameServiceImpl final : public v1::FrameService::Service {
+ public:
+  explicit FrameServiceImpl(const DaemonContext& ctx) : ctx_(ctx) {}
+  grpc::Status WatchFrames(grpc::ServerContext* context, const v1::WatchFramesRequest* request,
+                           grpc::ServerWriter<v1::Frame>* writer) override;
+
+ private:
+  const DaemonContext& ctx_;
+};
+
+class SceneServiceImpl final : public v1::SceneService::Service {
+ public:
+  explicit SceneServiceImpl(const DaemonContext& ctx) : ctx_(ctx) {}
+  grpc::Status GetScene(grpc::ServerContext*, const v1::GetSceneRequest*, v1::Scene*) override;
+  grpc::Status AddToScene(grpc::ServerContext*, const v1::AddToSceneRequest*,
+                          v1::SceneObject*) override;
+  grpc::Status RemoveFromScene(grpc::ServerContext*, const v1::RemoveFromSceneRequest*,
+                               v1::RemoveFromSceneResponse*) override;
+  grpc::Status SetParameters(grpc::ServerContext*, const v1::SetParametersRequest*,
+                             v1::SetParametersResponse*) override;
+  grpc::Status ListParameters(grpc::ServerContext*, const v1::ListParametersRequest*,
+                              v1::ListParametersResponse*) override;
+  grpc::Status Control(grpc::ServerContext*, const v1::ControlRequest*,
+                       v1::ControlResponse*) override;
+
+ private:
+  const DaemonContext& ctx_;
+};
+
+class ObjectServiceImpl final : public v1::ObjectService::Service {
+ public:
+  explicit ObjectServiceImpl(const DaemonContext& ctx) : ctx_(ctx) {}
+  grpc::Status CreateObject(grpc::ServerContext*, const v1::CreateObjectRequest*,
+                            grpc::ServerWriter<v1::CreateObjectProgress>*) override;
+  grpc::Status CancelJob(grpc::ServerContext*, const v1::CancelJobRequest*,
+                         v1::CancelJobResponse*) override;
+  grpc::Status ExtractContour(grpc::ServerContext*, const v1::ExtractContourRequest*,
+                              v1::ContourReport*) override;
+  grpc::Status ListObjects(grpc::ServerContext*, const v1::ListObjectsRequest*,
+                           v1::ListObjectsResponse*) override;
+  grpc::Status GetObject(grpc::ServerContext*, const v1::GetObjectRequest*, v1::Object*) override;
+  grpc::Status DeleteObject(grpc::ServerContext*, const v1::DeleteObjectRequest*,
+                            v1::DeleteObjectResponse*) override;
+  grpc::Status ExportObject(grpc::ServerContext*, const v1::ExportObjectRequest*,
+                            grpc::ServerWriter<v1::ExportChunk>*) override;
+
+ private:
+  const DaemonContext& ctx_;
+};
+
+class DeviceServiceImpl final : public v1::DeviceService::Service {
+ public:
+  explicit DeviceServiceImpl(const DaemonContext& ctx) : ctx_(ctx) {}
+  grpc::Status GetDeviceStatus(grpc::ServerContext*, const v1::GetDeviceStatusRequest*,
+                               v1::DeviceStatus*) override;
+  grpc::Status Calibrate(grpc::ServerContext*, const v1::CalibrateRequest*,
+                         v1::CalibrateResponse*) override;
+  grpc::Status AcquireLease(grpc::ServerContext*, const v1::AcquireLeaseRequest*,
+                            v1::Lease*) override;
+  grpc::Status RenewLease(grpc::ServerContext*, const v1::RenewLeaseRequest*, v1::Lease*) override;
+  grpc::Status ReleaseLease(grpc::ServerContext*, const v1::ReleaseLeaseRequest*,
+                            v1::ReleaseLeaseResponse*) override;
+  grpc::Status EmergencyStop(grpc::ServerContext*, const v1::EmergencyStopRequest*,
+                             v1::EmergencyStopResponse*) override;
+  grpc::Status ToolStream(grpc::ServerContext*,
+                          grpc::ServerReaderWriter<v1::ToolFeedback, v1::ToolInput>*) override;
+
+ private:
+  const DaemonContext& ctx_;
+};
+
+}  // namespace rheo::daemon

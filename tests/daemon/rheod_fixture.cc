@@ -1,0 +1,159 @@
+#include "rheod_fixture.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <regex>
+
+extern char** environ;
+
+namespace rheo::testing {
+namespace {
+
+std::vector<char*> Argv(const std::vector<std::string>& args) {
+  std::vector<char*> v;
+  for (const auto& a : args) v.push_back(const_cast<char*>(a.c_str()));
+  v.push_back(nullptr);
+  return v;
+}
+
+std::string MakeTempDir() {
+  std::string tmpl = (std::filesystem::temp_directory_path() / "rheod-test-XXXXXX").string();
+  char* p = mkdtemp(tmpl.data());
+  return p ? std::string(p) : std::string();
+}
+
+int WaitExit(int pid, std::chrono::milliseconds timeout) {
+  auto end = std::chrono::steady_clock::now() + timeout;
+  while (true) {
+    int status = 0;
+    int r = waitpid(pid, &status, WNOHANG);
+    if (r == pid) {
+      if (WIFEXITED(status)) return WEXITSTATUS(status);
+      if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
+      return -1;
+    }
+    if (std::chrono::steady_clock::now() > end) return -1;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // polling a child's exit
+  }
+}
+
+}  // namespace
+
+RheodProcess::RheodProcess(std::vector<std::string> extra_args) {
+  data_dir_ = MakeTempDir();
+  std::vector<std::string> args = {RHEOD_PATH, "--listen",    "127.0.0.1:0", "--data-dir",
+                                   data_dir_,  "--log-level", "debug"};
+  args.insert(args.end(), extra_args.begin(), extra_args.end());
+  int pipefd[2];
+  if (pipe2(pipefd, O_CLOEXEC) != 0) return;
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, pipefd[1], 2);
+  auto argv = Argv(args);
+  if (posix_spawn(&pid_, args[0].c_str(), &fa, nullptr, argv.data(), environ) != 0) pid_ = -1;
+  posix_spawn_file_actions_destroy(&fa);
+  close(pipefd[1]);
+  stderr_fd_ = pipefd[0];
+  reader_ = std::thread([this] {
+    char buf[4096];
+    while (true) {
+      ssize_t n = read(stderr_fd_, buf, sizeof buf);
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (n <= 0) {
+        eof_ = true;
+        cv_.notify_all();
+        return;
+      }
+      log_.append(buf, static_cast<size_t>(n));
+      cv_.notify_all();
+    }
+  });
+  if (pid_ < 0) return;
+  if (!WaitForLog("listening on", std::chrono::seconds(60))) return;
+  std::smatch m;
+  std::string l = log();
+  if (std::regex_search(l, m, std::regex("listening on (127\\.0\\.0\\.1:[0-9]+)"))) address_ = m[1];
+}
+
+RheodProcess::~RheodProcess() {
+  if (pid_ > 0) {
+    kill(pid_, SIGKILL);
+    WaitExit(pid_, std::chrono::seconds(5));
+  }
+  if (reader_.joinable()) reader_.join();
+  if (stderr_fd_ >= 0) close(stderr_fd_);
+  std::error_code ec;
+  if (!data_dir_.empty()) std::filesystem::remove_all(data_dir_, ec);
+}
+
+std::shared_ptr<grpc::Channel> RheodProcess::channel() const {
+  return grpc::CreateChannel(address_, grpc::InsecureChannelCredentials());
+}
+
+bool RheodProcess::WaitForLog(const std::string& needle, std::chrono::milliseconds timeout) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  return cv_.wait_for(lock, timeout, [&] {
+    return eof_ || log_.find(needle) != std::string::npos;
+  }) && log_.find(needle) != std::string::npos;
+}
+
+std::string RheodProcess::log() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return log_;
+}
+
+int RheodProcess::Terminate(std::chrono::milliseconds timeout, std::chrono::milliseconds* took) {
+  if (pid_ <= 0) return -1;
+  auto t0 = std::chrono::steady_clock::now();
+  kill(pid_, SIGTERM);
+  int code = WaitExit(pid_, timeout);
+  if (took)
+    *took = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() -
+                                                                  t0);
+  if (code != -1) pid_ = -1;
+  return code;
+}
+
+RunResult RunProgram(const std::vector<std::string>& args) {
+  RunResult r;
+  int out[2], err[2];
+  if (pipe2(out, O_CLOEXEC) != 0 || pipe2(err, O_CLOEXEC) != 0) return r;
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, out[1], 1);
+  posix_spawn_file_actions_adddup2(&fa, err[1], 2);
+  auto argv = Argv(args);
+  int pid = -1;
+  int rc = posix_spawn(&pid, args[0].c_str(), &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  close(out[1]);
+  close(err[1]);
+  if (rc != 0) {
+    close(out[0]);
+    close(err[0]);
+    return r;
+  }
+  std::thread t([&] {
+    char b[4096];
+    ssize_t n;
+    while ((n = read(err[0], b, sizeof b)) > 0) r.err.append(b, static_cast<size_t>(n));
+  });
+  char b[4096];
+  ssize_t n;
+  while ((n = read(out[0], b, sizeof b)) > 0) r.out.append(b, static_cast<size_t>(n));
+  t.join();
+  close(out[0]);
+  close(err[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+}  // namespace rheo::testing

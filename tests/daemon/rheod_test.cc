@@ -1,0 +1,285 @@
+// Integration tests against a real rheod process on loopback.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "grpc/health/v1/health.grpc.pb.h"
+#include "grpc/reflection/v1alpha/reflection.grpc.pb.h"
+#include "rheo/v1/daemon.grpc.pb.h"
+#include "rheo/v1/device.grpc.pb.h"
+#include "rheo/v1/frames.grpc.pb.h"
+#include "rheo/v1/objects.grpc.pb.h"
+#include "rheo/v1/scene.grpc.pb.h"
+#include "rheod_fixture.h"
+
+namespace rheo::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+class RheodTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    daemon_ = std::make_unique<RheodProcess>();
+    ASSERT_TRUE(daemon_->started()) << "rheod did not start; its log:\n" << daemon_->log();
+  }
+  std::unique_ptr<RheodProcess> daemon_;
+};
+
+TEST_F(RheodTest, HealthIsServing) {
+  auto stub = grpc::health::v1::Health::NewStub(daemon_->channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  grpc::health::v1::HealthCheckResponse r;
+  ASSERT_TRUE(stub->Check(&ctx, {}, &r).ok());
+  EXPECT_EQ(r.status(), grpc::health::v1::HealthCheckResponse::SERVING);
+}
+
+TEST_F(RheodTest, ReflectionListsEveryService) {
+  auto stub = grpc::reflection::v1alpha::ServerReflection::NewStub(daemon_->channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  auto stream = stub->ServerReflectionInfo(&ctx);
+  grpc::reflection::v1alpha::ServerReflectionRequest req;
+  req.set_list_services("*");
+  ASSERT_TRUE(stream->Write(req));
+  grpc::reflection::v1alpha::ServerReflectionResponse resp;
+  ASSERT_TRUE(stream->Read(&resp));
+  std::set<std::string> names;
+  for (const auto& s : resp.list_services_response().service()) names.insert(s.name());
+  for (const char* want : {"rheo.v1.DaemonService", "rheo.v1.FrameService", "rheo.v1.SceneService",
+                           "rheo.v1.ObjectService", "rheo.v1.DeviceService"})
+    EXPECT_TRUE(names.count(want)) << want << " missing from reflection";
+
+  // A generic client can also fetch the schema of a service.
+  req.set_file_containing_symbol("rheo.v1.DaemonService");
+  ASSERT_TRUE(stream->Write(req));
+  ASSERT_TRUE(stream->Read(&resp));
+  EXPECT_GT(resp.file_descriptor_response().file_descriptor_proto_size(), 0);
+  stream->WritesDone();
+  EXPECT_TRUE(stream->Finish().ok());
+}
+
+TEST_F(RheodTest, LoopTicksAdvanceAndStatisticsAreReported) {
+  auto daemon = rheo::v1::DaemonService::NewStub(daemon_->channel());
+  auto frames = rheo::v1::FrameService::NewStub(daemon_->channel());
+  rheo::v1::DaemonStatus first, second;
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    ASSERT_TRUE(daemon->GetStatus(&ctx, {}, &first).ok());
+  }
+  // Two frames at 100 Hz guarantee the loop has moved on by at least one tick.
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    rheo::v1::WatchFramesRequest req;
+    req.set_rate_hz(100);
+    req.set_max_frames(2);
+    auto reader = frames->WatchFrames(&ctx, req);
+    rheo::v1::Frame f1, f2;
+    ASSERT_TRUE(reader->Read(&f1));
+    ASSERT_TRUE(reader->Read(&f2));
+    EXPECT_GT(f2.stamp().tick(), f1.stamp().tick());
+    EXPECT_GT(f2.stamp().sim_time(), f1.stamp().sim_time());
+    EXPECT_TRUE(reader->Finish().ok());
+  }
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    ASSERT_TRUE(daemon->GetStatus(&ctx, {}, &second).ok());
+  }
+  EXPECT_GT(second.loop().ticks(), first.loop().ticks());
+  EXPECT_DOUBLE_EQ(second.loop().rate_hz(), 1000.0);
+  const auto& p = second.loop().period();
+  EXPECT_GT(p.count(), 0u);
+  EXPECT_GT(p.p50_us(), 0.0);
+  EXPECT_LE(p.p50_us(), p.p99_us());
+  EXPECT_LE(p.p99_us(), p.p999_us());
+  EXPECT_LE(p.p999_us(), p.max_us());
+  EXPECT_FALSE(second.version().empty());
+  EXPECT_EQ(second.device(), rheo::v1::DEVICE_KIND_NONE);
+}
+
+TEST_F(RheodTest, PauseStopsSimulatedTimeAndResumeRestartsIt) {
+  auto scene = rheo::v1::SceneService::NewStub(daemon_->channel());
+  rheo::v1::ControlResponse r1, r2, r3;
+  rheo::v1::ControlRequest req;
+  req.set_command(rheo::v1::RUN_COMMAND_PAUSE);
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    ASSERT_TRUE(scene->Control(&ctx, req, &r1).ok());
+  }
+  EXPECT_TRUE(r1.paused());
+  req.set_command(rheo::v1::RUN_COMMAND_STEP);
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    ASSERT_TRUE(scene->Control(&ctx, req, &r2).ok());
+  }
+  EXPECT_NEAR(r2.sim_time() - r1.sim_time(), 0.001, 1e-9) << "STEP advances exactly one tick";
+  req.set_command(rheo::v1::RUN_COMMAND_RESET);
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    ASSERT_TRUE(scene->Control(&ctx, req, &r3).ok());
+  }
+  EXPECT_EQ(r3.sim_time(), 0.0);
+  EXPECT_TRUE(r3.paused());
+  req.set_command(rheo::v1::RUN_COMMAND_RESUME);
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    ASSERT_TRUE(scene->Control(&ctx, req, &r3).ok());
+  }
+  EXPECT_FALSE(r3.paused());
+  // Stepping a running scene is refused with a reason.
+  req.set_command(rheo::v1::RUN_COMMAND_STEP);
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  grpc::Status s = scene->Control(&ctx, req, &r3);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_NE(s.error_message().find("pause"), std::string::npos);
+}
+
+TEST_F(RheodTest, BadInputGetsAClearErrorAndTheDaemonKeepsRunning) {
+  auto frames = rheo::v1::FrameService::NewStub(daemon_->channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  rheo::v1::WatchFramesRequest req;
+  req.set_rate_hz(5000);
+  auto reader = frames->WatchFrames(&ctx, req);
+  rheo::v1::Frame f;
+  EXPECT_FALSE(reader->Read(&f));
+  grpc::Status s = reader->Finish();
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(s.error_message().find("rate_hz"), std::string::npos);
+
+  auto scene = rheo::v1::SceneService::NewStub(daemon_->channel());
+  grpc::ClientContext ctx2;
+  SetDeadline(ctx2);
+  rheo::v1::ControlResponse r;
+  EXPECT_EQ(scene->Control(&ctx2, rheo::v1::ControlRequest(), &r).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+
+  auto health = grpc::health::v1::Health::NewStub(daemon_->channel());
+  grpc::ClientContext ctx3;
+  SetDeadline(ctx3);
+  grpc::health::v1::HealthCheckResponse h;
+  ASSERT_TRUE(health->Check(&ctx3, {}, &h).ok());
+  EXPECT_EQ(h.status(), grpc::health::v1::HealthCheckResponse::SERVING);
+}
+
+TEST_F(RheodTest, DeviceCallsWithoutADeviceSaySo) {
+  auto device = rheo::v1::DeviceService::NewStub(daemon_->channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  rheo::v1::DeviceStatus st;
+  ASSERT_TRUE(device->GetDeviceStatus(&ctx, {}, &st).ok());
+  EXPECT_EQ(st.kind(), rheo::v1::DEVICE_KIND_NONE);
+  grpc::ClientContext ctx2;
+  SetDeadline(ctx2);
+  rheo::v1::CalibrateResponse cr;
+  grpc::Status s = device->Calibrate(&ctx2, {}, &cr);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_NE(s.error_message().find("--device"), std::string::npos);
+}
+
+TEST_F(RheodTest, SigtermEndsOpenStreamsWithAStatusAndExitsCleanly) {
+  auto frames = rheo::v1::FrameService::NewStub(daemon_->channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, 30s);
+  rheo::v1::WatchFramesRequest req;
+  req.set_rate_hz(50);
+  auto reader = frames->WatchFrames(&ctx, req);
+  rheo::v1::Frame f;
+  ASSERT_TRUE(reader->Read(&f));  // the stream is open
+  std::chrono::milliseconds took{};
+  EXPECT_EQ(daemon_->Terminate(5s, &took), 0) << daemon_->log();
+  EXPECT_LT(took.count(), 2000) << "shutdown must finish within 2 s";
+  while (reader->Read(&f)) {
+  }
+  grpc::Status s = reader->Finish();
+  EXPECT_FALSE(s.ok());
+  EXPECT_TRUE(s.error_code() == grpc::StatusCode::UNAVAILABLE ||
+              s.error_code() == grpc::StatusCode::CANCELLED)
+      << s.error_code() << " " << s.error_message();
+  EXPECT_NE(daemon_->log().find("shutting down"), std::string::npos);
+}
+
+TEST(RheodStartup, SecondDaemonOnTheSameDataDirIsRefused) {
+  RheodProcess first;
+  ASSERT_TRUE(first.started()) << first.log();
+  RunResult r = RunProgram({RHEOD_PATH, "--listen", "127.0.0.1:0", "--data-dir", first.data_dir()});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("in use by another rheod"), std::string::npos) << r.err;
+}
+
+TEST(RheodStartup, BadFlagsAreRefusedWithAMessage) {
+  RunResult r = RunProgram({RHEOD_PATH, "--device", "teleporter"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("--device"), std::string::npos) << r.err;
+}
+
+TEST(RheodStartup, ConfigFileSetsFlags) {
+  RheodProcess probe;  // only for a temporary folder that is cleaned up
+  ASSERT_TRUE(probe.started());
+  std::string cfg = probe.data_dir() + "/rheod.toml";
+  FILE* f = fopen(cfg.c_str(), "w");
+  ASSERT_NE(f, nullptr);
+  fprintf(f, "rate = 500\nlog-level = \"debug\"\n");
+  fclose(f);
+  RheodProcess configured({"--config", cfg});
+  ASSERT_TRUE(configured.started()) << configured.log();
+  auto daemon = rheo::v1::DaemonService::NewStub(configured.channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  rheo::v1::DaemonStatus st;
+  ASSERT_TRUE(daemon->GetStatus(&ctx, {}, &st).ok());
+  EXPECT_DOUBLE_EQ(st.loop().rate_hz(), 500.0);
+}
+
+// rheoctl is a separate process talking to the daemon.
+TEST_F(RheodTest, RheoctlStatusWatchAndHealth) {
+  RunResult st = RunProgram({RHEOCTL_PATH, "--server", daemon_->address(), "status", "--json"});
+  ASSERT_EQ(st.exit_code, 0) << st.err;
+  auto j = nlohmann::json::parse(st.out);
+  EXPECT_GT(std::stoull(j["loop"]["ticks"].get<std::string>()), 0u);
+
+  RunResult human = RunProgram({RHEOCTL_PATH, "--server", daemon_->address(), "status"});
+  ASSERT_EQ(human.exit_code, 0) << human.err;
+  EXPECT_NE(human.out.find("p99.9"), std::string::npos);
+
+  RunResult w = RunProgram(
+      {RHEOCTL_PATH, "--server", daemon_->address(), "watch", "--rate", "200", "--count", "3"});
+  ASSERT_EQ(w.exit_code, 0) << w.err;
+  int lines = 0;
+  std::istringstream in(w.out);
+  for (std::string line; std::getline(in, line);) {
+    auto fj = nlohmann::json::parse(line);
+    EXPECT_TRUE(fj.contains("stamp"));
+    ++lines;
+  }
+  EXPECT_EQ(lines, 3);
+
+  RunResult h = RunProgram({RHEOCTL_PATH, "--server", daemon_->address(), "health"});
+  EXPECT_EQ(h.exit_code, 0);
+  EXPECT_NE(h.out.find("SERVING"), std::string::npos);
+
+  RunResult bad = RunProgram(
+      {RHEOCTL_PATH, "--server", daemon_->address(), "watch", "--rate", "0.5", "--count", "1"});
+  EXPECT_EQ(bad.exit_code, static_cast<int>(grpc::StatusCode::INVALID_ARGUMENT));
+  EXPECT_NE(bad.err.find("INVALID_ARGUMENT"), std::string::npos) << bad.err;
+}
+
+TEST(RheoctlAlone, UnreachableServerExitsNonZeroWithTheStatus) {
+  // Port 1 on loopback has no listener in a test sandbox.
+  RunResult r = RunProgram({RHEOCTL_PATH, "--server", "127.0.0.1:1", "--timeout", "1", "status"});
+  EXPECT_EQ(r.exit_code, static_cast<int>(grpc::StatusCode::UNAVAILABLE)) << r.err;
+  EXPECT_NE(r.err.find("UNAVAILABLE"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace rheo::testing
