@@ -1,0 +1,126 @@
+#include "daemon/store.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <set>
+
+namespace rheo::daemon {
+namespace {
+
+class StoreTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string tmpl = (std::filesystem::temp_directory_path() / "rheo-store-XXXXXX").string();
+    dir_ = mkdtemp(tmpl.data());
+    path_ = dir_ + "/objects.db";
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  static StoredObject Sample(const std::string& id, int64_t ms) {
+    StoredObject o;
+    o.id = id;
+    o.name = "bean " + id;
+    o.created_unix_ms = ms;
+    o.meta = std::string("\x0a\x03", 2) + "abc";
+    o.sketch = "{\"width\":1}";
+    o.sketch_kind = "strokes";
+    o.background = std::string(1000, '\xff');
+    o.mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1.5}};
+    o.mesh.tets = {{0, 1, 2, 3}};
+    o.mesh.surface = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+    o.triangulation_svg = "<svg/>";
+    return o;
+  }
+
+  std::string dir_, path_;
+};
+
+TEST_F(StoreTest, PutGetSurvivesReopen) {
+  {
+    auto s = Store::Open(path_);
+    ASSERT_TRUE(s.ok()) << s.error().message;
+    ASSERT_TRUE((*s)->Put(Sample("a", 1)).ok());
+  }
+  auto s = Store::Open(path_);
+  ASSERT_TRUE(s.ok());
+  auto o = (*s)->Get("a");
+  ASSERT_TRUE(o.ok()) << o.error().message;
+  StoredObject want = Sample("a", 1);
+  EXPECT_EQ(o->name, want.name);
+  EXPECT_EQ(o->meta, want.meta);
+  EXPECT_EQ(o->background, want.background);
+  EXPECT_EQ(o->mesh.positions, want.mesh.positions);
+  EXPECT_EQ(o->mesh.tets, want.mesh.tets);
+  EXPECT_EQ(o->mesh.surface, want.mesh.surface);
+  EXPECT_EQ(o->triangulation_svg, "<svg/>");
+  EXPECT_EQ(*(*s)->Count(), 1u);
+}
+
+TEST_F(StoreTest, ListPagesNewestFirstWithoutRepeats) {
+  auto s = Store::Open(path_);
+  ASSERT_TRUE(s.ok());
+  for (int i = 0; i < 25; ++i) ASSERT_TRUE((*s)->Put(Sample("id" + std::to_string(i), i / 3)).ok());
+  std::set<std::string> seen;
+  std::string token;
+  int64_t last_ms = INT64_MAX;
+  int pages = 0;
+  do {
+    std::string next;
+    auto page = (*s)->List(4, token, &next);
+    ASSERT_TRUE(page.ok()) << page.error().message;
+    for (auto& o : *page) {
+      EXPECT_TRUE(seen.insert(o.id).second) << o.id << " repeated";
+      EXPECT_LE(o.created_unix_ms, last_ms);
+      last_ms = o.created_unix_ms;
+      EXPECT_TRUE(o.mesh.positions.empty()) << "listing does not load meshes";
+    }
+    token = next;
+    ++pages;
+  } while (!token.empty());
+  EXPECT_EQ(seen.size(), 25u);
+  EXPECT_EQ(pages, 7);
+  EXPECT_EQ((*s)->List(4, "garbage", nullptr).error().code, ErrorCode::kInvalidArgument);
+}
+
+TEST_F(StoreTest, DeleteAndMissingIdsAreNotFound) {
+  auto s = Store::Open(path_);
+  ASSERT_TRUE(s.ok());
+  ASSERT_TRUE((*s)->Put(Sample("x", 5)).ok());
+  EXPECT_TRUE((*s)->Delete("x").ok());
+  auto g = (*s)->Get("x");
+  ASSERT_FALSE(g.ok());
+  EXPECT_EQ(g.error().code, ErrorCode::kNotFound);
+  EXPECT_NE(g.error().message.find("'x'"), std::string::npos);
+  EXPECT_EQ((*s)->Delete("x").error().code, ErrorCode::kNotFound);
+}
+
+TEST_F(StoreTest, UnopenablePathIsAClearError) {
+  auto s = Store::Open(dir_ + "/no/such/dir/objects.db");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("cannot open object store"), std::string::npos);
+}
+
+TEST(StoreMesh, EncodeDecodeRoundTripAndCorruptionIsDetected) {
+  TetMesh m;
+  m.positions = {{0.1, 0.2, 0.3}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  m.tets = {{0, 1, 2, 3}};
+  m.surface = {{1, 2, 3}};
+  std::string blob = Store::EncodeMesh(m);
+  auto r = Store::DecodeMesh(blob);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->positions, m.positions);
+  EXPECT_FALSE(Store::DecodeMesh(blob.substr(0, blob.size() - 1)).ok());
+  std::string bad = blob;
+  bad[bad.size() - 4] = 9;  // a surface index beyond the vertex count
+  EXPECT_FALSE(Store::DecodeMesh(bad).ok());
+}
+
+TEST(StoreIds, AreUnique) {
+  std::set<std::string> ids;
+  for (int i = 0; i < 1000; ++i) ids.insert(Store::NewId());
+  EXPECT_EQ(ids.size(), 1000u);
+}
+
+}  // namespace
+}  // namespace rheo::daemon
