@@ -12,8 +12,11 @@
 //       k = min(requested coupling_stiffness, DeviceLimits::max_stiffness,
 //               stability_margin * 2 (damping - coupling_damping) / tick)
 //   and the coupling force is clamped to max_force [N] and slewed by at most max_force_rate [N/s].
-//   The object side sees the same spring: a simulation integrating explicitly with step h and node
-//   mass m needs k * h^2 / m < 4 (see Renderer::effective_stiffness()).
+//   The coupling damper B acts on the proxy-device relative velocity and is what damps the
+//   object side: with B = 0 at the bound, a lightly damped object keeps a limit cycle (measured in
+//   tests/haptics/closed_loop_test.cc); B of about 0.2 b removes it. The object side sees the same
+//   spring: a simulation integrating explicitly with step h and node mass m needs k h^2 / m < 4
+//   (see Renderer::effective_stiffness()).
 #pragma once
 
 #include <array>
@@ -44,7 +47,8 @@ struct RendererConfig {
   double tool_radius = 3e-3;        ///< radius of the spherical tool tip [m], (0, 0.1]
   double coupling_stiffness = 1e6;  ///< requested coupling spring [N/m], (0, 1e7]; clamped to
                                     ///< the device and stability limits
-  double coupling_damping = 0.0;    ///< coupling damper B [N s/m], [0, device.damping)
+  double coupling_damping = 0.4;    ///< coupling damper B [N s/m], [0, device.damping);
+                                    ///< about 0.2 device.damping
   double stability_margin = 1.0;    ///< fraction of K_stable allowed, (0, 1]
   double static_friction = 0.0;     ///< static friction coefficient, [0, 2]
   double dynamic_friction = 0.0;    ///< dynamic friction coefficient, [0, static_friction]
@@ -156,7 +160,7 @@ class Renderer {
   Vec3 FaceNormal(std::span<const Vec3> x, int32_t f) const;
   Vec3 PseudoNormal(std::span<const Vec3> x, const Plane& pl) const;
   bool Depenetrate(std::span<const Vec3> x, Vec3& p);
-  int32_t Touching(std::array<internal::HalfSpace, kMaxContactFaces>& h,
+  int32_t Touching(std::array<internal::HalfSpace, kMaxContactFaces>& h, double gap_limit,
                    std::array<int32_t, kMaxContactFaces>* which, int32_t* nwhich) const;
   Vec3 MoveProxy(std::span<const Vec3> x, const Vec3& from, const Vec3& target);
   void DistributeReaction(std::span<const Vec3> x, const Vec3& object_force);

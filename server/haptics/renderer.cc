@@ -284,15 +284,21 @@ bool Renderer::Depenetrate(std::span<const Vec3> x, Vec3& p) {
   return false;
 }
 
-int32_t Renderer::Touching(std::array<HalfSpace, kMaxContactFaces>& h,
+int32_t Renderer::Touching(std::array<HalfSpace, kMaxContactFaces>& h, double gap_limit,
                            std::array<int32_t, kMaxContactFaces>* which, int32_t* nwhich) const {
-  // Distinct touching half-spaces (a proxy on a vertex touches every face around it with one
-  // plane); `which` lists up to kMaxContactFaces touching faces, nearest first.
+  // Half-spaces for the projection: the kMaxContactFaces nearest distinct planes, touching or
+  // (face interiors) within gap_limit: a proxy on a vertex touches every face around it with one
+  // plane, and face planes that the motion may reach make the projection land in concave creases
+  // at once. `which` lists the faces actually touching (gap <= kTouch), nearest first.
+  std::array<double, kMaxContactFaces> hgap;
   int32_t nh = 0, nw = 0;
   for (int32_t i = 0; i < static_cast<int32_t>(planes_.size()); ++i) {
     const Plane& pl = planes_[i];
-    if (pl.gap > kTouch) continue;
-    if (which != nullptr) {
+    // A face's own plane bounds the free space exactly; the planes of edges and vertices are
+    // tangent only where they touch and would stop a slide early.
+    if (pl.gap > (pl.feature == static_cast<uint8_t>(Feature::kFace) ? gap_limit : kTouch))
+      continue;
+    if (which != nullptr && pl.gap <= kTouch) {
       if (nw < kMaxContactFaces) {
         (*which)[nw++] = i;
       } else {
@@ -306,11 +312,24 @@ int32_t Renderer::Touching(std::array<HalfSpace, kMaxContactFaces>& h,
     for (int32_t j = 0; j < nh; ++j) {
       if (h[j].n.dot(pl.n) > 1.0 - 1e-9) {
         h[j].c = std::max(h[j].c, pl.c);
+        hgap[j] = std::min(hgap[j], pl.gap);
         merged = true;
         break;
       }
     }
-    if (!merged && nh < kMaxContactFaces) h[nh++] = {pl.n, pl.c};
+    if (merged) continue;
+    if (nh < kMaxContactFaces) {
+      h[nh] = {pl.n, pl.c};
+      hgap[nh++] = pl.gap;
+    } else {
+      int32_t far = 0;
+      for (int32_t j = 1; j < nh; ++j)
+        if (hgap[j] > hgap[far]) far = j;
+      if (pl.gap < hgap[far]) {
+        h[far] = {pl.n, pl.c};
+        hgap[far] = pl.gap;
+      }
+    }
   }
   if (which != nullptr) {
     std::sort(which->begin(), which->begin() + nw,
@@ -328,7 +347,7 @@ Vec3 Renderer::MoveProxy(std::span<const Vec3> x, const Vec3& from, const Vec3& 
   double left = config_.max_step;
   std::array<HalfSpace, kMaxContactFaces> h;
   for (int it = 0; it < kMaxMoves && left > kMinMove; ++it) {
-    const int32_t nh = Touching(h, nullptr, nullptr);
+    const int32_t nh = Touching(h, left, nullptr, nullptr);
     Vec3 y;
     if (!internal::ProjectOntoHalfSpaces(target, std::span(h.data(), nh), kProjTol, y)) break;
     Vec3 d = y - p;
@@ -417,7 +436,8 @@ Result<ContactOutput> Renderer::Update(const DeviceState& device, std::span<cons
   bool sliding = false;
   {
     std::array<HalfSpace, kMaxContactFaces> h;
-    const int32_t nh = Touching(h, nullptr, nullptr);
+    const bool touching = Touching(h, kTouch, nullptr, nullptr) > 0;
+    const int32_t nh = touching ? Touching(h, config_.max_step, nullptr, nullptr) : 0;
     Vec3 free_proxy;
     if (nh > 0 &&
         internal::ProjectOntoHalfSpaces(g, std::span(h.data(), nh), kProjTol, free_proxy)) {
@@ -449,7 +469,7 @@ Result<ContactOutput> Renderer::Update(const DeviceState& device, std::span<cons
   std::array<HalfSpace, kMaxContactFaces> h;
   std::array<int32_t, kMaxContactFaces> which;
   int32_t touching = 0;
-  Touching(h, &which, &touching);
+  Touching(h, kTouch, &which, &touching);
   const bool in_contact = touching > 0 && (g - p).norm() > kMinMove;
   Vec3 normal = Vec3::Zero();
   if (in_contact) {

@@ -24,6 +24,7 @@ RendererConfig StiffConfig() {
   c.device.damping = 2.0;
   c.device.max_force_rate = 1e6;  // out of the way of the closed forms
   c.coupling_stiffness = 1e6;
+  c.coupling_damping = 0.0;  // closed forms below are for the spring alone
   return c;
 }
 
