@@ -1,0 +1,559 @@
+#include "sketch/sketch.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+
+#include "sketch/format.h"
+#include "sketch/polyline.h"
+#include "sketch/raster.h"
+#include "sketch/strokes.h"
+
+namespace rheo::sketch {
+namespace {
+
+using internal::Bitmap;
+using internal::Num;
+using internal::Pt;
+
+class Stopwatch {
+ public:
+  void Lap(const char* stage, ContourResult& r) {
+    const auto now = std::chrono::steady_clock::now();
+    r.timings.push_back({stage, std::chrono::duration<double, std::milli>(now - t_).count()});
+    t_ = now;
+  }
+
+ private:
+  std::chrono::steady_clock::time_point t_ = std::chrono::steady_clock::now();
+};
+
+Status CheckOptions(const ContourOptions& o) {
+  if (!(o.epsilon_px > 0.0 && o.epsilon_px <= 1000.0)) {
+    return InvalidArgument("epsilon must be in (0, 1000] px, got " + Num(o.epsilon_px, 3));
+  }
+  if (!(o.max_gap_fraction >= 0.0 && o.max_gap_fraction <= 0.5)) {
+    return InvalidArgument("max_gap_fraction must be in [0, 0.5], got " +
+                           Num(o.max_gap_fraction, 3));
+  }
+  if (!(o.resample_spacing_px > 0.0 && o.resample_spacing_px <= 100.0)) {
+    return InvalidArgument("resample_spacing_px must be in (0, 100], got " +
+                           Num(o.resample_spacing_px, 3));
+  }
+  if (!(o.adaptive_offset > 0.0 && o.adaptive_offset < 1.0)) {
+    return InvalidArgument("adaptive_offset must be in (0, 1)");
+  }
+  return Status::Ok();
+}
+
+// Vectorizes a dense closed chain, repairs or refuses self-crossings, orients it and checks size.
+Status Finish(std::vector<Vec2> chain, const ContourOptions& o, ContourResult& r) {
+  internal::RemoveNearDuplicates(chain, 1e-6);
+  Eigen::AlignedBox2d box;
+  for (const Vec2& p : chain) box.extend(p);
+  if (chain.size() < 3) {
+    return InvalidArgument("shape too small to mesh: the outline at " +
+                           (chain.empty() ? std::string("?") : Pt(chain[0])) + " has " +
+                           std::to_string(chain.size()) + " distinct points");
+  }
+  double hmax = 0.0;
+  const std::vector<int> idx = internal::SimplifyClosed(chain, o.epsilon_px, &hmax);
+  std::vector<Vec2> poly;
+  poly.reserve(idx.size());
+  for (int i : idx) poly.push_back(chain[i]);
+  bool repaired = false;
+  for (int guard = 0; guard < 1000; ++guard) {
+    const auto x = internal::FindSelfCrossing(poly);
+    if (!x) break;
+    if (!o.repair_self_crossing) {
+      return InvalidArgument("self-crossing outline at " + Pt(x->point) + " (edges " +
+                             std::to_string(x->edge_a) + " and " + std::to_string(x->edge_b) +
+                             " of the vectorized outline)");
+    }
+    // Two loops meet at the crossing; keep the one with the larger area.
+    std::vector<Vec2> inner = {x->point}, outer = {x->point};
+    for (int k = x->edge_a + 1; k <= x->edge_b; ++k) inner.push_back(poly[k]);
+    for (int k = x->edge_b + 1; k < static_cast<int>(poly.size()); ++k) outer.push_back(poly[k]);
+    for (int k = 0; k <= x->edge_a; ++k) outer.push_back(poly[k]);
+    internal::RemoveNearDuplicates(inner, 1e-6);
+    internal::RemoveNearDuplicates(outer, 1e-6);
+    const double ai = std::abs(internal::SignedArea(inner));
+    const double ao = std::abs(internal::SignedArea(outer));
+    const bool keep_inner = ai > ao;
+    r.repairs.push_back("self-crossing at " + Pt(x->point) +
+                        ": kept the larger loop, dropped a loop of area " +
+                        Num(keep_inner ? ao : ai, 0) + " px^2");
+    poly = keep_inner ? std::move(inner) : std::move(outer);
+    repaired = true;
+    if (poly.size() < 3) break;
+  }
+  if (poly.size() < 3) {
+    return InvalidArgument("shape too small to mesh: the outline in " + Pt(box.min()) + "-" +
+                           Pt(box.max()) + " vectorizes to fewer than 3 points at epsilon " +
+                           Num(o.epsilon_px, 2) + " px");
+  }
+  double area = internal::SignedArea(poly);
+  if (area < 0) {
+    std::reverse(poly.begin(), poly.end());
+    area = -area;
+  }
+  if (area < o.min_area_px2) {
+    return InvalidArgument("shape too small to mesh: area " + Num(area, 0) + " px^2 in " +
+                           Pt(box.min()) + "-" + Pt(box.max()) + ", below min_area " +
+                           Num(o.min_area_px2, 0) + " px^2");
+  }
+  if (repaired) {
+    // Distance of the kept part of the drawn line to the final contour.
+    hmax = 0.0;
+    for (const Vec2& p : chain) {
+      const double d = internal::PointPolygonDistance(p, poly);
+      if (d <= 3.0 * o.epsilon_px + 2.0) hmax = std::max(hmax, d);
+    }
+  }
+  r.contour.points = std::move(poly);
+  r.epsilon_px = o.epsilon_px;
+  r.line_distance_px = hmax;
+  r.area_px2 = area;
+  r.perimeter_px = internal::ClosedLength(r.contour.points);
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<ContourResult> ContourFromStrokesJson(std::string_view json, const ContourOptions& o) {
+  if (Status s = CheckOptions(o); !s) return s.error();
+  ContourResult r;
+  r.kind = SketchKind::kStrokes;
+  Stopwatch sw;
+  auto set = internal::ParseStrokesJson(json, o);
+  if (!set.ok()) return set.error();
+  r.width = set->width;
+  r.height = set->height;
+  sw.Lap("parse", r);
+  auto merged = internal::MergeStrokes(*set, o);
+  if (!merged.ok()) return merged.error();
+  r.repairs = std::move(merged->repairs);
+  r.warnings = std::move(merged->warnings);
+  sw.Lap("merge", r);
+  std::vector<Vec2> dense = internal::ResampleClosed(merged->closed, o.resample_spacing_px);
+  sw.Lap("resample", r);
+  if (Status s = Finish(std::move(dense), o, r); !s) return s.error();
+  sw.Lap("vectorize", r);
+  return r;
+}
+
+namespace {
+
+// Values in the analysis bitmap.
+constexpr uint8_t kBg = 0, kInk = 1, kOutside = 2, kInkSeen = 3, kHoleSeen = 4;
+
+struct Component {
+  int64_t area = 0;                                  // ink pixels
+  int64_t boundary = 0;                              // ink pixels with a non-ink 4-neighbour
+  int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;  // bounding box, padded coordinates
+  std::vector<int> holes;
+  int64_t hole_area = 0;         // all holes [px]
+  int64_t significant_area = 0;  // holes that are not slivers inside the line [px]
+  int significant = 0;
+  int64_t largest_hole = 0;
+  enum Kind { kSpeck, kOutline, kSilhouette, kOpen } kind = kSpeck;
+  double Width() const { return boundary > 0 ? 2.0 * area / boundary : 1.0; }
+};
+
+struct Hole {
+  int64_t area = 0;
+  int64_t perimeter = 0;  // hole pixels with an ink 4-neighbour
+  int parent = -1;
+  bool significant = false;
+};
+
+// Span flood fill of 4-connected `from` pixels starting at seed; calls visit(i) on each.
+template <typename Visit>
+void SpanFill(Bitmap& bm, int seed, uint8_t from, uint8_t to, Visit visit) {
+  const int s = bm.stride, rows = bm.height + 2;
+  uint8_t* v = bm.v.data();
+  std::vector<int> stack = {seed};
+  while (!stack.empty()) {
+    const int i = stack.back();
+    stack.pop_back();
+    if (v[i] != from) continue;
+    const int y = i / s, row = y * s;
+    int xl = i - row, xr = xl;
+    while (xl > 0 && v[row + xl - 1] == from) --xl;
+    while (xr < s - 1 && v[row + xr + 1] == from) ++xr;
+    for (int x = xl; x <= xr; ++x) v[row + x] = to, visit(row + x);
+    for (int ny : {y - 1, y + 1}) {
+      if (ny < 0 || ny >= rows) continue;
+      const int nrow = ny * s;
+      bool in_run = false;
+      for (int x = xl; x <= xr; ++x) {
+        const bool f = v[nrow + x] == from;
+        if (f && !in_run) stack.push_back(nrow + x);
+        in_run = f;
+      }
+    }
+  }
+}
+
+std::string Box(const Component& c) {
+  return Pt(Vec2(c.x0 - 1, c.y0 - 1)) + "-" + Pt(Vec2(c.x1 - 1, c.y1 - 1));
+}
+
+// Bresenham line of ink in a bitmap (inner coordinates).
+void DrawLine(Bitmap& bm, int x0, int y0, int x1, int y1) {
+  const int dx = std::abs(x1 - x0), sx = x0 < x1 ? 1 : -1;
+  const int dy = -std::abs(y1 - y0), sy = y0 < y1 ? 1 : -1;
+  int err = dx + dy;
+  for (;;) {
+    bm.at(x0, y0) = 1;
+    if (x0 == x1 && y0 == y1) break;
+    const int e2 = 2 * err;
+    if (e2 >= dy) err += dy, x0 += sx;
+    if (e2 <= dx) err += dx, y0 += sy;
+  }
+}
+
+// Farthest skeleton pixel from `from` (8-connected hops); returns it and its distance.
+std::pair<int, int> Farthest(const Bitmap& bm, int from, std::vector<int>& dist) {
+  const int s = bm.stride;
+  const int off[8] = {-s - 1, -s, -s + 1, -1, 1, s - 1, s, s + 1};
+  std::fill(dist.begin(), dist.end(), -1);
+  std::vector<int> queue = {from};
+  dist[from] = 0;
+  int best = from;
+  for (size_t q = 0; q < queue.size(); ++q) {
+    const int i = queue[q];
+    if (dist[i] > dist[best]) best = i;
+    for (int d : off) {
+      const int j = i + d;
+      if (bm.v[j] && dist[j] < 0) dist[j] = dist[i] + 1, queue.push_back(j);
+    }
+  }
+  return {best, dist[best]};
+}
+
+}  // namespace
+
+Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const ContourOptions& o) {
+  if (Status s = CheckOptions(o); !s) return s.error();
+  ContourResult r;
+  Stopwatch sw;
+  Result<internal::GrayImage> img = InvalidArgument("");
+  if (internal::LooksLikePng(bytes)) {
+    r.kind = SketchKind::kPng;
+    img = internal::DecodePng(bytes, o);
+  } else if (internal::LooksLikeJpeg(bytes)) {
+    r.kind = SketchKind::kJpeg;
+    img = internal::DecodeJpeg(bytes, o);
+  } else {
+    return InvalidArgument("not a PNG or JPEG picture (unknown signature)");
+  }
+  if (!img.ok()) return img.error();
+  r.width = img->width;
+  r.height = img->height;
+  sw.Lap("decode", r);
+
+  Bitmap bm = internal::Binarize(*img, o, &r.binarization, &r.warnings);
+  img = InvalidArgument("");  // release the grey picture
+  sw.Lap("binarize", r);
+
+  // Components: outside paper, ink components (8-connected), holes (4-connected paper inside).
+  const int s = bm.stride;
+  uint8_t* v = bm.v.data();
+  const size_t npx = bm.v.size();
+  std::unique_ptr<int32_t[]> label(new int32_t[npx]);  // written for ink and hole pixels only
+  SpanFill(bm, 0, kBg, kOutside, [](int) {});
+  std::vector<Component> comps;
+  std::vector<Hole> holes;
+  std::vector<int> stack;
+  const int off8[8] = {-s - 1, -s, -s + 1, -1, 1, s - 1, s, s + 1};
+  const int off4[4] = {-s, -1, 1, s};
+  for (size_t i0 = 0; i0 < npx; ++i0) {
+    const int i = static_cast<int>(i0);
+    if (v[i] == kInk) {
+      const int id = static_cast<int>(comps.size());
+      comps.emplace_back();
+      Component& c = comps.back();
+      stack.assign(1, i);
+      v[i] = kInkSeen;
+      while (!stack.empty()) {
+        const int p = stack.back();
+        stack.pop_back();
+        label[p] = id;
+        ++c.area;
+        const int x = p % s, y = p / s;
+        c.x0 = std::min(c.x0, x), c.x1 = std::max(c.x1, x);
+        c.y0 = std::min(c.y0, y), c.y1 = std::max(c.y1, y);
+        bool edge = false;
+        for (int d : off4) edge = edge || (v[p + d] != kInk && v[p + d] != kInkSeen);
+        c.boundary += edge;
+        for (int d : off8) {
+          if (v[p + d] == kInk) v[p + d] = kInkSeen, stack.push_back(p + d);
+        }
+      }
+    } else if (v[i] == kBg) {
+      const int id = static_cast<int>(holes.size());
+      Hole h;
+      h.parent = label[i - 1];
+      SpanFill(bm, i, kBg, kHoleSeen, [&](int p) {
+        label[p] = id;
+        ++h.area;
+        for (int d : off4) {
+          if (v[p + d] == kInk || v[p + d] == kInkSeen) {
+            ++h.perimeter;
+            break;
+          }
+        }
+      });
+      holes.push_back(h);
+      comps[h.parent].holes.push_back(id);
+    }
+  }
+  sw.Lap("components", r);
+
+  const int64_t speck = std::max<int64_t>(16, int64_t(1e-4 * double(r.width) * r.height));
+  int specks = 0;
+  for (Component& c : comps) {
+    const double w = c.Width();
+    for (int id : c.holes) {
+      Hole& h = holes[id];
+      c.hole_area += h.area;
+      const double thick = h.perimeter > 0 ? 2.0 * h.area / h.perimeter : 0.0;
+      h.significant = h.area >= std::max(16.0, w * w) && thick >= std::max(2.0, 0.75 * w);
+      if (h.significant) {
+        ++c.significant;
+        c.significant_area += h.area;
+        c.largest_hole = std::max(c.largest_hole, h.area);
+      }
+    }
+    if (c.area + c.hole_area < speck) {
+      c.kind = Component::kSpeck;
+      ++specks;
+    } else if (c.significant > 0) {
+      c.kind = w <= 0.35 * std::sqrt(double(c.largest_hole)) ? Component::kOutline
+                                                             : Component::kSilhouette;
+    } else {
+      const double perim = double(c.boundary);
+      const double roundness = perim * perim / (4.0 * M_PI * double(c.area));
+      c.kind = (w >= 5.0 && roundness < 8.0) ? Component::kSilhouette : Component::kOpen;
+    }
+  }
+  if (specks > 0) {
+    r.warnings.push_back("ignored " + std::to_string(specks) + " speck(s) smaller than " +
+                         std::to_string(speck) + " px");
+  }
+
+  // Crop of one component: its ink, plus the holes named by `fill_hole`.
+  auto crop = [&](const Component& c, int id, bool fill_all_holes) {
+    Bitmap b(c.x1 - c.x0 + 1, c.y1 - c.y0 + 1);
+    for (int y = c.y0; y <= c.y1; ++y) {
+      for (int x = c.x0; x <= c.x1; ++x) {
+        const int p = y * s + x;
+        bool on = false;
+        if (v[p] == kInkSeen) {
+          on = label[p] == id;
+        } else if (v[p] == kHoleSeen) {
+          const Hole& h = holes[label[p]];
+          on = h.parent == id && (fill_all_holes || !h.significant);
+        }
+        b.at(x - c.x0, y - c.y0) = on;
+      }
+    }
+    return b;
+  };
+
+  struct Extracted {
+    std::vector<Vec2> chain;
+    double enclosed = 0.0;
+    double line_width = 0.0;
+    bool silhouette = false;
+    std::vector<std::string> notes;  // warnings
+    std::vector<std::string> repairs;
+    int comp = -1;
+  };
+  auto to_chain = [&](const Bitmap& region, const Component& c) {
+    std::vector<Vec2> chain;
+    for (auto [x, y] : internal::TraceOuterBoundary(region)) {
+      chain.emplace_back(x + c.x0 - 1 + 0.5, y + c.y0 - 1 + 0.5);
+    }
+    return chain;
+  };
+  double t_thin = 0, t_spur = 0, t_trace = 0;
+  auto now = [] { return std::chrono::steady_clock::now(); };
+  auto ms = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+
+  // Drawn outline: thin, remove extra lines, fill what the line encloses, trace its edge.
+  auto extract_line = [&](int id) -> Result<Extracted> {
+    const Component& c = comps[id];
+    Extracted e;
+    e.comp = id;
+    auto t0 = now();
+    Bitmap b = crop(c, id, false);
+    internal::HilditchThin(b);
+    auto t1 = now();
+    t_thin += ms(t0, t1);
+    Bitmap skeleton = b;
+    internal::RemoveSpurs(b);
+    int64_t kept = b.Count();
+    if (kept == 0) {
+      // Open line: its two far ends are the gap.
+      std::vector<int> dist(skeleton.v.size());
+      int start = 0;
+      while (!skeleton.v[start]) ++start;
+      const auto [a, da] = Farthest(skeleton, start, dist);
+      const auto [bb, len] = Farthest(skeleton, a, dist);
+      const int ax = a % skeleton.stride - 1, ay = a / skeleton.stride - 1;
+      const int bx = bb % skeleton.stride - 1, by = bb / skeleton.stride - 1;
+      const Vec2 pa(ax + c.x0 - 1 + 0.5, ay + c.y0 - 1 + 0.5);
+      const Vec2 pb(bx + c.x0 - 1 + 0.5, by + c.y0 - 1 + 0.5);
+      const double gap = (pa - pb).norm();
+      const double limit = o.max_gap_fraction * (len + gap);
+      if (gap > limit) {
+        return InvalidArgument("not closed: gap of " + Num(gap, 0) + " px between " + Pt(pa) +
+                               " and " + Pt(pb) + " (closing limit " + Num(limit, 0) + " px = " +
+                               Num(100 * o.max_gap_fraction, 0) + " % of the perimeter)");
+      }
+      b = skeleton;
+      DrawLine(b, ax, ay, bx, by);
+      internal::RemoveSpurs(b);
+      kept = b.Count();
+      e.repairs.push_back("closed a gap of " + Num(gap) + " px between " + Pt(pa) + " and " +
+                          Pt(pb));
+      if (kept == 0)
+        return InvalidArgument("not closed: the line in " + Box(c) + " encloses nothing");
+    }
+    auto t2 = now();
+    t_spur += ms(t1, t2);
+    e.line_width = double(c.area) / double(std::max<int64_t>(1, kept));
+    internal::FillEnclosed(b, 1);
+    e.enclosed = double(b.Count());
+    e.chain = to_chain(b, c);
+    if (c.significant > 1) {
+      e.notes.push_back("inner loops ignored: the outline in " + Box(c) + " encloses " +
+                        std::to_string(c.significant) +
+                        " separate regions; its outer edge is used");
+    }
+    t_trace += ms(t2, now());
+    return e;
+  };
+  auto extract_silhouette = [&](int id) {
+    const Component& c = comps[id];
+    Extracted e;
+    e.comp = id;
+    e.silhouette = true;
+    auto t0 = now();
+    Bitmap b = crop(c, id, true);
+    e.enclosed = double(c.area + c.hole_area);
+    e.line_width = 0.0;
+    e.chain = to_chain(b, c);
+    if (c.significant > 0) {
+      e.notes.push_back("holes ignored: the filled shape in " + Box(c) + " has " +
+                        std::to_string(c.significant) + " hole(s); its outer edge is used");
+    }
+    t_trace += ms(t0, now());
+    return e;
+  };
+
+  std::vector<int> order;
+  for (size_t k = 0; k < comps.size(); ++k)
+    if (comps[k].kind != Component::kSpeck) order.push_back(static_cast<int>(k));
+  if (order.empty()) {
+    return InvalidArgument("nothing drawn: no ink found in the " + std::to_string(r.width) + " x " +
+                           std::to_string(r.height) + " picture (" + r.binarization + ")");
+  }
+  // Closed candidates by enclosed area; the largest open line competes if it could be bigger.
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    return comps[a].area + comps[a].hole_area > comps[b].area + comps[b].hole_area;
+  });
+  std::optional<Extracted> best;
+  std::optional<Error> open_error;
+  int open_tried = -1;
+  for (int id : order) {
+    const Component& c = comps[id];
+    const double bound = double(c.x1 - c.x0 + 1) * (c.y1 - c.y0 + 1);
+    if (best && bound <= best->enclosed) break;
+    if (c.kind == Component::kOpen) {
+      if (open_tried >= 0) continue;
+      open_tried = id;
+      auto e = extract_line(id);
+      if (!e.ok()) {
+        if (!open_error) open_error = e.error();
+        continue;
+      }
+      if (!best || e->enclosed > best->enclosed) best = std::move(*e);
+    } else if (c.kind == Component::kOutline) {
+      auto e = extract_line(id);
+      if (!e.ok()) continue;
+      if (!best || e->enclosed > best->enclosed) best = std::move(*e);
+    } else {
+      auto e = extract_silhouette(id);
+      if (!best || e.enclosed > best->enclosed) best = std::move(e);
+    }
+  }
+  r.timings.push_back({"thin", t_thin});
+  r.timings.push_back({"spurs", t_spur});
+  r.timings.push_back({"trace", t_trace});
+  sw.Lap("select", r);
+  r.timings.back().ms = std::max(0.0, r.timings.back().ms - t_thin - t_spur - t_trace);
+  if (!best) {
+    if (open_error) return *open_error;
+    return InvalidArgument("nothing closed drawn: no outline or filled shape found");
+  }
+  for (int id : order) {
+    if (id == best->comp) continue;
+    const Component& c = comps[id];
+    const char* what = c.kind == Component::kOpen      ? "an open line"
+                       : c.kind == Component::kOutline ? "a closed outline"
+                                                       : "a filled shape";
+    r.warnings.push_back(std::string("several shapes: ignored ") + what + " in " + Box(c) +
+                         "; the largest is used");
+  }
+  for (auto& n : best->notes) r.warnings.push_back(std::move(n));
+  for (auto& n : best->repairs) r.repairs.push_back(std::move(n));
+  r.filled_silhouette = best->silhouette;
+  r.line_width_px = best->line_width;
+  if (Status st = Finish(std::move(best->chain), o, r); !st) return st.error();
+  sw.Lap("vectorize", r);
+  return r;
+}
+
+Result<ContourResult> ContourFromSketchBytes(std::span<const uint8_t> bytes,
+                                             const ContourOptions& o) {
+  if (internal::LooksLikePng(bytes) || internal::LooksLikeJpeg(bytes)) {
+    return ContourFromImage(bytes, o);
+  }
+  size_t k = 0;
+  while (k < bytes.size() &&
+         (bytes[k] == ' ' || bytes[k] == '\n' || bytes[k] == '\r' || bytes[k] == '\t')) {
+    ++k;
+  }
+  if (k < bytes.size() && bytes[k] == '{') {
+    return ContourFromStrokesJson(
+        std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), o);
+  }
+  if (bytes.empty()) return InvalidArgument("nothing drawn: the sketch is empty");
+  return InvalidArgument(
+      "unknown sketch format: expected stroke JSON (starting with '{'), PNG or JPEG");
+}
+
+double SymmetricHausdorff(const std::vector<Vec2>& a, const std::vector<Vec2>& b,
+                          double sample_px) {
+  auto directed = [sample_px](const std::vector<Vec2>& p, const std::vector<Vec2>& q) {
+    double worst = 0.0;
+    for (size_t i = 0; i < p.size(); ++i) {
+      const Vec2& u = p[i];
+      const Vec2& w = p[(i + 1) % p.size()];
+      const int n = std::max(1, static_cast<int>(std::ceil((w - u).norm() / sample_px)));
+      for (int k = 0; k < n; ++k) {
+        worst = std::max(worst, internal::PointPolygonDistance(u + (w - u) * (double(k) / n), q));
+      }
+    }
+    return worst;
+  };
+  if (a.empty() || b.empty()) return INFINITY;
+  return std::max(directed(a, b), directed(b, a));
+}
+
+}  // namespace rheo::sketch
