@@ -1,0 +1,132 @@
+#include "sim/integrators.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace rheo::sim::internal {
+namespace {
+
+// Depenetration speed cap: a node found below the floor is lifted out at most this fast [m/s].
+constexpr double kMaxDepenetrationSpeed = 1.0;
+
+// Inelastic floor contact with Coulomb friction as a velocity projection: unconditionally stable,
+// independent of the material stiffness, and the impulse gives the reaction force directly.
+void FloorProjection(const Model& m, const Parameters& p, State& s, double h, double tick) {
+  const double floor = p.floor_height;
+  const double mu = p.friction;
+  const double inv_tick = 1.0 / tick;
+  const int32_t n = m.num_nodes;
+  for (int32_t i = 0; i < n; ++i) {
+    Vec3& v = s.v[i];
+    const double y = s.x[i].y();
+    if (y + h * v.y() >= floor || m.fixed[i]) continue;
+    double vn = (floor - y) / h;
+    if (y < floor) vn = std::min(vn, std::max(v.y(), 0.0) + kMaxDepenetrationSpeed);
+    const double dvn = vn - v.y();
+    if (dvn <= 0.0) continue;
+    const double vt = std::hypot(v.x(), v.z());
+    const double dvt = std::min(vt, mu * dvn);
+    const double scale = vt > 0.0 ? (vt - dvt) / vt : 0.0;
+    const Vec3 before = v;
+    v.x() *= scale;
+    v.z() *= scale;
+    v.y() = vn;
+    s.floor_reaction[i] += m.mass[i] * (v - before) * inv_tick;
+  }
+}
+
+void Advect(const Model& m, State& s, double h) {
+  const int32_t n = m.num_nodes;
+  for (int32_t i = 0; i < n; ++i) s.x[i] += h * s.v[i];
+}
+
+double Dot(std::span<const Vec3> a, std::span<const Vec3> b) {
+  double d = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) d += a[i].dot(b[i]);
+  return d;
+}
+
+}  // namespace
+
+void SymplecticEulerSubstep(const Model& m, const Parameters& p, const ActiveTerms& terms, State& s,
+                            double h, double tick) {
+  ComputeForces(m, p, terms, s, h, /*advance_a=*/true, /*linearise=*/false);
+  const int32_t n = m.num_nodes;
+  for (int32_t i = 0; i < n; ++i) s.v[i] += (h * m.inv_mass[i]) * s.f[i];
+  if (terms.floor) FloorProjection(m, p, s, h, tick);
+  Advect(m, s, h);
+}
+
+SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const ActiveTerms& terms,
+                                State& s, double h, double tick) {
+  ComputeForces(m, p, terms, s, h, /*advance_a=*/true, /*linearise=*/true);
+  const int32_t n = m.num_nodes;
+  // rhs = h f - h^2 (-K) v.
+  ApplyJacobian(m, terms, s, s.v, s.cg_q, /*stiffness_only=*/true);
+  for (int32_t i = 0; i < n; ++i) {
+    s.rhs[i] = m.fixed[i] ? Vec3::Zero() : Vec3(h * s.f[i] - s.cg_q[i]);
+  }
+  // Jacobi preconditioner from the diagonal of the system (mass + trace/3 of each block).
+  for (int32_t i = 0; i < n; ++i) s.diag[i] = m.mass[i];
+  if (terms.edges) {
+    for (size_t k = 0; k < m.edges.size(); ++k) {
+      const double t = (s.edge_axial_k[k] + s.edge_axial_c[k] + 2.0 * s.edge_lateral[k]) / 3.0;
+      s.diag[m.edges[k][0]] += t;
+      s.diag[m.edges[k][1]] += t;
+    }
+  }
+  if (terms.global_volume) {
+    const double beta = s.global_k + s.global_c;
+    for (int32_t i = 0; i < n; ++i) s.diag[i] += beta * s.vol_grad[i].squaredNorm() / 3.0;
+  }
+  auto apply_a = [&](std::span<const Vec3> in, std::span<Vec3> out) {
+    ApplyJacobian(m, terms, s, in, out, /*stiffness_only=*/false);
+    for (int32_t i = 0; i < n; ++i) {
+      out[i] = m.fixed[i] ? Vec3::Zero() : Vec3(out[i] + m.mass[i] * in[i]);
+    }
+  };
+  // CG, warm-started from the previous dv.
+  for (int32_t i = 0; i < n; ++i) {
+    if (m.fixed[i] || !s.dv[i].allFinite()) s.dv[i].setZero();
+  }
+  apply_a(s.dv, s.cg_q);
+  for (int32_t i = 0; i < n; ++i) s.cg_r[i] = s.rhs[i] - s.cg_q[i];
+  const double rhs_norm = std::sqrt(Dot(s.rhs, s.rhs));
+  SolveStats stats;
+  if (rhs_norm > 0.0) {
+    const double tol = p.cg_tolerance * rhs_norm;
+    const int max_it = static_cast<int>(p.cg_max_iterations);
+    for (int32_t i = 0; i < n; ++i) s.cg_z[i] = s.cg_r[i] / s.diag[i];
+    for (int32_t i = 0; i < n; ++i) s.cg_p[i] = s.cg_z[i];
+    double rz = Dot(s.cg_r, s.cg_z);
+    double r_norm = std::sqrt(Dot(s.cg_r, s.cg_r));
+    int it = 0;
+    while (it < max_it && r_norm > tol) {
+      apply_a(s.cg_p, s.cg_q);
+      const double pq = Dot(s.cg_p, s.cg_q);
+      if (!(pq > 0.0)) break;
+      const double alpha = rz / pq;
+      for (int32_t i = 0; i < n; ++i) {
+        s.dv[i] += alpha * s.cg_p[i];
+        s.cg_r[i] -= alpha * s.cg_q[i];
+        s.cg_z[i] = s.cg_r[i] / s.diag[i];
+      }
+      const double rz_next = Dot(s.cg_r, s.cg_z);
+      const double beta = rz_next / rz;
+      rz = rz_next;
+      for (int32_t i = 0; i < n; ++i) s.cg_p[i] = s.cg_z[i] + beta * s.cg_p[i];
+      r_norm = std::sqrt(Dot(s.cg_r, s.cg_r));
+      ++it;
+    }
+    stats.iterations = it;
+    stats.residual = r_norm / rhs_norm;
+  } else {
+    for (int32_t i = 0; i < n; ++i) s.dv[i].setZero();
+  }
+  for (int32_t i = 0; i < n; ++i) s.v[i] += s.dv[i];
+  if (terms.floor) FloorProjection(m, p, s, h, tick);
+  Advect(m, s, h);
+  return stats;
+}
+
+}  // namespace rheo::sim::internal

@@ -1,0 +1,176 @@
+#include "sim/model.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "common/tet_mesh_io.h"
+
+namespace rheo::sim {
+namespace {
+
+double SignedTetVolume(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& p3) {
+  return (p1 - p0).dot((p2 - p0).cross(p3 - p0)) / 6.0;
+}
+
+// Finishes the geometric fields of a model whose nodes, masses, edges, faces and tets are set.
+Status FinishModel(Model& m) {
+  const int32_t n = m.num_nodes;
+  auto bad_index = [&](const char* what, size_t k, int32_t idx) {
+    return InvalidArgument(std::string(what) + " " + std::to_string(k) + " refers to node " +
+                           std::to_string(idx) + ", outside [0, " + std::to_string(n) + ")");
+  };
+  for (int32_t i = 0; i < n; ++i) {
+    if (!m.rest_positions[i].allFinite()) {
+      return InvalidArgument("node " + std::to_string(i) + " has a non-finite position");
+    }
+  }
+  m.edge_rest_length.resize(m.edges.size());
+  for (size_t k = 0; k < m.edges.size(); ++k) {
+    for (int32_t idx : m.edges[k]) {
+      if (idx < 0 || idx >= n) return bad_index("edge", k, idx);
+    }
+    const double l = (m.rest_positions[m.edges[k][1]] - m.rest_positions[m.edges[k][0]]).norm();
+    if (!(l > 0.0)) {
+      return InvalidArgument("edge " + std::to_string(k) + " (nodes " +
+                             std::to_string(m.edges[k][0]) + ", " + std::to_string(m.edges[k][1]) +
+                             ") has zero rest length");
+    }
+    m.edge_rest_length[k] = l;
+  }
+  m.face_rest_area.resize(m.faces.size());
+  m.face_min_height.resize(m.faces.size());
+  m.rest_volume = 0.0;
+  for (size_t k = 0; k < m.faces.size(); ++k) {
+    for (int32_t idx : m.faces[k]) {
+      if (idx < 0 || idx >= n) return bad_index("face", k, idx);
+    }
+    const Vec3& a = m.rest_positions[m.faces[k][0]];
+    const Vec3& b = m.rest_positions[m.faces[k][1]];
+    const Vec3& c = m.rest_positions[m.faces[k][2]];
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    m.face_rest_area[k] = area;
+    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    m.face_min_height[k] = longest > 0 ? 2.0 * area / longest : 0.0;
+    m.rest_volume += a.dot(b.cross(c)) / 6.0;
+  }
+  m.tet_rest_volume.resize(m.tets.size());
+  m.tet_min_height.resize(m.tets.size());
+  m.inverted_tets = 0;
+  for (size_t k = 0; k < m.tets.size(); ++k) {
+    for (int32_t idx : m.tets[k]) {
+      if (idx < 0 || idx >= n) return bad_index("tetrahedron", k, idx);
+    }
+    const auto& t = m.tets[k];
+    const Vec3* p[4] = {&m.rest_positions[t[0]], &m.rest_positions[t[1]], &m.rest_positions[t[2]],
+                        &m.rest_positions[t[3]]};
+    const double vol = SignedTetVolume(*p[0], *p[1], *p[2], *p[3]);
+    m.tet_rest_volume[k] = vol;
+    if (!(vol > 0.0)) ++m.inverted_tets;
+    double max_face = 0.0;
+    for (int f = 0; f < 4; ++f) {
+      const Vec3& a = *p[(f + 1) % 4];
+      const Vec3& b = *p[(f + 2) % 4];
+      const Vec3& c = *p[(f + 3) % 4];
+      max_face = std::max(max_face, 0.5 * (b - a).cross(c - a).norm());
+    }
+    m.tet_min_height[k] = max_face > 0 ? 3.0 * std::abs(vol) / max_face : 0.0;
+  }
+  Eigen::AlignedBox3d box;
+  for (const Vec3& p : m.rest_positions) box.extend(p);
+  m.size = n > 0 ? box.diagonal().norm() : 0.0;
+  m.inv_mass.resize(n);
+  m.fixed.assign(n, 0);
+  for (int32_t i = 0; i < n; ++i) {
+    if (!(m.mass[i] > 0.0) || !std::isfinite(m.mass[i])) {
+      return InvalidArgument("node " + std::to_string(i) +
+                             " has no mass (it belongs to no tetrahedron, or its mass is not "
+                             "positive)");
+    }
+    m.inv_mass[i] = 1.0 / m.mass[i];
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<Model> BuildModel(const TetMesh& mesh_in, double density) {
+  if (mesh_in.tets.empty() || mesh_in.positions.size() < 4) {
+    return InvalidArgument("mesh has no tetrahedra (" + std::to_string(mesh_in.tets.size()) +
+                           " tets, " + std::to_string(mesh_in.positions.size()) + " nodes)");
+  }
+  if (!(density > 0.0)) return InvalidArgument("density must be positive");
+  Model m;
+  m.num_nodes = static_cast<int32_t>(mesh_in.positions.size());
+  m.rest_positions = mesh_in.positions;
+  m.tets = mesh_in.tets;
+  const int32_t n = m.num_nodes;
+  for (size_t k = 0; k < m.tets.size(); ++k) {
+    for (int32_t idx : m.tets[k]) {
+      if (idx < 0 || idx >= n) {
+        return InvalidArgument("tetrahedron " + std::to_string(k) + " refers to node " +
+                               std::to_string(idx) + ", outside [0, " + std::to_string(n) + ")");
+      }
+    }
+    auto& t = m.tets[k];
+    if (SignedTetVolume(m.rest_positions[t[0]], m.rest_positions[t[1]], m.rest_positions[t[2]],
+                        m.rest_positions[t[3]]) < 0.0) {
+      std::swap(t[2], t[3]);
+    }
+  }
+  if (mesh_in.surface.empty()) {
+    TetMesh copy;
+    copy.positions = mesh_in.positions;
+    copy.tets = m.tets;
+    ComputeBoundary(copy);
+    m.faces = std::move(copy.surface);
+  } else {
+    m.faces = mesh_in.surface;
+  }
+  // Unique edges, sorted so that memory access follows node order.
+  m.edges.reserve(m.tets.size() * 6);
+  for (const auto& t : m.tets) {
+    for (int i = 0; i < 4; ++i) {
+      for (int j = i + 1; j < 4; ++j) {
+        m.edges.push_back({std::min(t[i], t[j]), std::max(t[i], t[j])});
+      }
+    }
+  }
+  std::sort(m.edges.begin(), m.edges.end());
+  m.edges.erase(std::unique(m.edges.begin(), m.edges.end()), m.edges.end());
+  m.edges.shrink_to_fit();
+  // Lumped masses: a quarter of each tet's volume to each of its nodes.
+  m.node_volume.assign(n, 0.0);
+  for (const auto& t : m.tets) {
+    const double vol = std::abs(SignedTetVolume(m.rest_positions[t[0]], m.rest_positions[t[1]],
+                                                m.rest_positions[t[2]], m.rest_positions[t[3]]));
+    for (int32_t idx : t) m.node_volume[idx] += 0.25 * vol;
+  }
+  m.mass.resize(n);
+  for (int32_t i = 0; i < n; ++i) m.mass[i] = density * m.node_volume[i];
+  if (Status s = FinishModel(m); !s.ok()) return s.error();
+  return m;
+}
+
+Result<Model> BuildModelFromParts(std::span<const Vec3> positions, std::span<const double> masses,
+                                  std::span<const std::array<int32_t, 2>> edges,
+                                  std::span<const std::array<int32_t, 3>> faces,
+                                  std::span<const std::array<int32_t, 4>> tets) {
+  if (positions.size() != masses.size()) {
+    return InvalidArgument("positions (" + std::to_string(positions.size()) + ") and masses (" +
+                           std::to_string(masses.size()) + ") differ in length");
+  }
+  Model m;
+  m.num_nodes = static_cast<int32_t>(positions.size());
+  m.rest_positions.assign(positions.begin(), positions.end());
+  m.mass.assign(masses.begin(), masses.end());
+  m.node_volume.assign(positions.size(), 0.0);
+  m.edges.assign(edges.begin(), edges.end());
+  m.faces.assign(faces.begin(), faces.end());
+  m.tets.assign(tets.begin(), tets.end());
+  if (Status s = FinishModel(m); !s.ok()) return s.error();
+  return m;
+}
+
+}  // namespace rheo::sim

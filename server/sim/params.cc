@@ -1,0 +1,209 @@
+#include "sim/params.h"
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+namespace rheo::sim {
+namespace {
+
+using P = Parameters;
+
+constexpr std::array<ParameterInfo, 23> kTable = {{
+    {"density", &P::density, 1.0, 1e5, "kg/m^3", "material density (lumped masses)"},
+    {"k_v", &P::k_v, 0.0, 1e7, "N/m", "Voigt spring elasticity per edge (eq. 2)"},
+    {"c_v", &P::c_v, 1e-6, 1e6, "N s/m", "Voigt damper viscosity per edge (eq. 2)"},
+    {"voigt_ratio", &P::voigt_ratio, 0.05, 0.95, "-", "rest length share of the Voigt part"},
+    {"damper_a", &P::damper_a, 1e-6, 1e8, "N s/m", "A of the nonlinear damper (eq. 3)"},
+    {"damper_b", &P::damper_b, 0.0, 1e3, "1/N", "B of the nonlinear damper (eq. 3)"},
+    {"f_min", &P::f_min, 0.0, 1e6, "N", "force below which c_d = c_max (eq. 3)"},
+    {"f_max", &P::f_max, 0.0, 1e6, "N", "force above which c_d = c_min (eq. 3)"},
+    {"volume_k", &P::volume_k, 0.0, 1e16, "N/m^5", "K of the global volume condition (eq. 4)"},
+    {"volume_c", &P::volume_c, 0.0, 1e14, "N s/m^5", "C of the global volume condition (eq. 4)"},
+    {"area_k", &P::area_k, 0.0, 1e6, "N", "k of the surface area springs (eq. 5)"},
+    {"tet_k", &P::tet_k, 0.0, 1e6, "N", "k of the tetrahedron volume springs (eq. 6)"},
+    {"gravity", &P::gravity, 0.0, 100.0, "m/s^2", "gravitational acceleration along -y"},
+    {"floor_enabled", &P::floor_enabled, 0.0, 1.0, "-", "1 = floor plane present"},
+    {"floor_height", &P::floor_height, -1e3, 1e3, "m", "floor plane y"},
+    {"friction", &P::friction, 0.0, 10.0, "-", "Coulomb friction coefficient with the floor"},
+    {"max_substeps", &P::max_substeps, 1.0, 10000.0, "-", "cap on explicit substeps per tick"},
+    {"implicit_substeps", &P::implicit_substeps, 1.0, 1000.0, "-",
+     "substeps per tick of the implicit integrator"},
+    {"cg_tolerance", &P::cg_tolerance, 1e-14, 1.0, "-", "relative CG residual to stop at"},
+    {"cg_max_iterations", &P::cg_max_iterations, 1.0, 10000.0, "-", "CG iteration cap"},
+    {"max_speed", &P::max_speed, 1e-3, 1e5, "m/s", "node speed treated as an explosion"},
+    {"sleep_speed", &P::sleep_speed, 0.0, 1.0, "m/s", "speed under which nodes are at rest"},
+    {"sleep_time", &P::sleep_time, 0.0, 1e6, "s", "rest time before sleeping (0: never)"},
+}};
+
+std::string RangeText(const ParameterInfo& info) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "[%g, %g] %s", info.min, info.max, info.unit);
+  return buf;
+}
+
+const ParameterInfo* Find(std::string_view name) {
+  for (const auto& info : kTable) {
+    if (name == info.name) return &info;
+  }
+  return nullptr;
+}
+
+std::string KnownNames() {
+  std::string s;
+  for (size_t i = 0; i < kTable.size(); ++i) {
+    if (!s.empty()) s += ", ";
+    s += kTable[i].name;
+  }
+  return s;
+}
+
+Status CheckOne(const ParameterInfo& info, double value) {
+  if (!std::isfinite(value) || value < info.min || value > info.max) {
+    return InvalidArgument("parameter '" + std::string(info.name) + "' = " + std::to_string(value) +
+                           " is out of range " + RangeText(info));
+  }
+  return Status::Ok();
+}
+
+Status CheckCross(const Parameters& p) {
+  if (p.f_min > p.f_max) {
+    return InvalidArgument("parameter 'f_min' (" + std::to_string(p.f_min) +
+                           " N) must not exceed 'f_max' (" + std::to_string(p.f_max) + " N)");
+  }
+  return Status::Ok();
+}
+
+Parameters SoftJelly() {
+  Parameters p;
+  p.k_v = 60.0;
+  p.c_v = 0.2;
+  p.damper_a = 30.0;
+  p.damper_b = 2.0;
+  p.f_min = 0.3;
+  p.f_max = 1.5;
+  p.volume_k = 5e7;
+  p.volume_c = 0.0;
+  p.area_k = 0.02;
+  p.tet_k = 0.02;
+  return p;
+}
+
+Parameters HardJelly() {
+  Parameters p;
+  p.k_v = 400.0;
+  p.c_v = 0.5;
+  p.damper_a = 200.0;
+  p.damper_b = 1.0;
+  p.f_min = 1.0;
+  p.f_max = 4.0;
+  p.volume_k = 2e8;
+  p.area_k = 0.1;
+  p.tet_k = 0.1;
+  return p;
+}
+
+Parameters Clay() {
+  Parameters p;
+  p.density = 1800.0;
+  p.k_v = 80.0;
+  p.c_v = 0.6;
+  p.damper_a = 5.0;
+  p.damper_b = 5.0;
+  p.f_min = 0.05;
+  p.f_max = 0.5;
+  p.volume_k = 1e8;
+  p.area_k = 0.01;
+  p.tet_k = 0.05;
+  p.friction = 0.9;
+  return p;
+}
+
+Parameters Organ() {
+  Parameters p;
+  p.density = 1050.0;
+  p.k_v = 150.0;
+  p.c_v = 0.4;
+  p.damper_a = 100.0;
+  p.damper_b = 1.5;
+  p.f_min = 0.5;
+  p.f_max = 3.0;
+  p.volume_k = 1e8;
+  p.volume_c = 0.0;
+  p.area_k = 0.05;
+  p.tet_k = 0.05;
+  p.friction = 0.3;
+  return p;
+}
+
+const std::array<Preset, 4>& PresetArray() {
+  static const std::array<Preset, 4> presets = {{
+      {"soft-jelly", "wobbly, elastic, creeps only under strong force", SoftJelly(),
+       Integrator::kSymplecticEuler},
+      {"hard-jelly", "stiff elastic gel", HardJelly(), Integrator::kImplicitEuler},
+      {"clay", "low yield force: keeps dents (plastic)", Clay(), Integrator::kSymplecticEuler},
+      {"organ", "soft tissue: viscoelastic, slightly plastic under large force", Organ(),
+       Integrator::kSymplecticEuler},
+  }};
+  return presets;
+}
+
+}  // namespace
+
+Result<Integrator> ParseIntegrator(std::string_view name) {
+  if (name == "symplectic-euler") return Integrator::kSymplecticEuler;
+  if (name == "implicit-euler") return Integrator::kImplicitEuler;
+  return InvalidArgument("unknown integrator '" + std::string(name) +
+                         "'; known: symplectic-euler, implicit-euler");
+}
+
+const char* IntegratorName(Integrator integrator) {
+  return integrator == Integrator::kSymplecticEuler ? "symplectic-euler" : "implicit-euler";
+}
+
+std::span<const ParameterInfo> ParameterTable() {
+  return kTable;
+}
+
+Status SetParameterByName(Parameters& params, std::string_view name, double value) {
+  const ParameterInfo* info = Find(name);
+  if (info == nullptr) {
+    return InvalidArgument("unknown parameter '" + std::string(name) + "'; known: " + KnownNames());
+  }
+  if (Status s = CheckOne(*info, value); !s.ok()) return s;
+  Parameters next = params;
+  next.*(info->field) = value;
+  if (Status s = CheckCross(next); !s.ok()) return s;
+  params = next;
+  return Status::Ok();
+}
+
+Result<double> GetParameterByName(const Parameters& params, std::string_view name) {
+  const ParameterInfo* info = Find(name);
+  if (info == nullptr) {
+    return InvalidArgument("unknown parameter '" + std::string(name) + "'; known: " + KnownNames());
+  }
+  return params.*(info->field);
+}
+
+Status ValidateParameters(const Parameters& params) {
+  for (const auto& info : ParameterTable()) {
+    if (Status s = CheckOne(info, params.*(info.field)); !s.ok()) return s;
+  }
+  return CheckCross(params);
+}
+
+std::span<const Preset> Presets() {
+  return PresetArray();
+}
+
+Result<Preset> FindPreset(std::string_view name) {
+  for (const auto& p : PresetArray()) {
+    if (name == p.name) return p;
+  }
+  return InvalidArgument("unknown preset '" + std::string(name) +
+                         "'; known: soft-jelly, hard-jelly, clay, organ");
+}
+
+}  // namespace rheo::sim

@@ -1,0 +1,356 @@
+#include "sim/sim.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "sim/element.h"
+#include "sim/forces.h"
+#include "sim/integrators.h"
+
+namespace rheo::sim {
+
+// Steps between snapshots of the last good state (a restore goes back at most this many ticks).
+constexpr int32_t kSnapshotInterval = 8;
+
+void InitState(const Model& m, double voigt_ratio, State& s) {
+  const size_t n = m.num_nodes;
+  const size_t ne = m.edges.size();
+  s.time = 0.0;
+  s.x = m.rest_positions;
+  s.v.assign(n, Vec3::Zero());
+  s.a.assign(ne, voigt_ratio);
+  s.tension.assign(ne, 0.0);
+  s.f_ext.assign(n, Vec3::Zero());
+  s.floor_reaction.assign(n, Vec3::Zero());
+  s.f.assign(n, Vec3::Zero());
+  s.vol_grad.assign(n, Vec3::Zero());
+  s.edge_dir.assign(ne, Vec3::Zero());
+  s.edge_axial_k.assign(ne, 0.0);
+  s.edge_axial_c.assign(ne, 0.0);
+  s.edge_lateral.assign(ne, 0.0);
+  s.shape_coef.assign(m.faces.size() + m.tets.size(), 0.0);
+  s.shape_dir.assign(3 * m.faces.size() + 4 * m.tets.size(), Vec3::Zero());
+  for (auto* vec : {&s.cg_r, &s.cg_z, &s.cg_p, &s.cg_q, &s.dv, &s.rhs})
+    vec->assign(n, Vec3::Zero());
+  s.diag.assign(n, 1.0);
+  s.good_x = s.x;
+  s.good_v = s.v;
+  s.good_a = s.a;
+  s.good_tension = s.tension;
+  s.good_time = 0.0;
+}
+
+SimObject::SimObject(Model model, const Parameters& params, Integrator integrator)
+    : model_(std::move(model)), params_(params), integrator_(integrator) {
+  InitState(model_, params_.voigt_ratio, state_);
+  UpdateDerived();
+}
+
+Result<std::unique_ptr<SimObject>> SimObject::Create(const TetMesh& mesh, const Parameters& params,
+                                                     Integrator integrator) {
+  if (Status s = ValidateParameters(params); !s.ok()) return s.error();
+  Result<Model> model = BuildModel(mesh, params.density);
+  if (!model.ok()) return model.error();
+  return std::unique_ptr<SimObject>(new SimObject(std::move(*model), params, integrator));
+}
+
+Result<std::unique_ptr<SimObject>> SimObject::Create(const TetMesh& mesh, std::string_view preset) {
+  Result<Preset> p = FindPreset(preset);
+  if (!p.ok()) return p.error();
+  return Create(mesh, p->params, p->integrator);
+}
+
+Result<std::unique_ptr<SimObject>> SimObject::Create(Model model, const Parameters& params,
+                                                     Integrator integrator) {
+  if (Status s = ValidateParameters(params); !s.ok()) return s.error();
+  if (model.num_nodes <= 0) return InvalidArgument("model has no nodes");
+  return std::unique_ptr<SimObject>(new SimObject(std::move(model), params, integrator));
+}
+
+Status SimObject::SetParameter(std::string_view name, double value) {
+  const double old_density = params_.density;
+  const double old_ratio = params_.voigt_ratio;
+  if (Status s = SetParameterByName(params_, name, value); !s.ok()) return s;
+  if (params_.density != old_density) {
+    const double scale = params_.density / old_density;
+    for (int32_t i = 0; i < model_.num_nodes; ++i) {
+      model_.mass[i] *= scale;
+      model_.inv_mass[i] = model_.fixed[i] ? 0.0 : 1.0 / model_.mass[i];
+    }
+  }
+  (void)old_ratio;  // the Voigt natural length follows voigt_ratio from the next step on
+  UpdateDerived();
+  Wake();
+  return Status::Ok();
+}
+
+Status SimObject::SetParameters(const Parameters& params) {
+  if (Status s = ValidateParameters(params); !s.ok()) return s;
+  const double scale = params.density / params_.density;
+  params_ = params;
+  for (int32_t i = 0; i < model_.num_nodes; ++i) {
+    model_.mass[i] *= scale;
+    model_.inv_mass[i] = model_.fixed[i] ? 0.0 : 1.0 / model_.mass[i];
+  }
+  UpdateDerived();
+  Wake();
+  return Status::Ok();
+}
+
+void SimObject::SetIntegrator(Integrator integrator) {
+  integrator_ = integrator;
+  Wake();
+}
+
+void SimObject::UpdateDerived() {
+  // Explicit stability bound: Gershgorin on M^-1 K and M^-1 D, the rank-one volume term exactly.
+  const Model& m = model_;
+  const int32_t n = m.num_nodes;
+  const internal::ActiveTerms terms = internal::DecideTerms(m, params_);
+  // Symmetrically scaled Gershgorin bound on M^-1/2 K M^-1/2 (x) and M^-1/2 D M^-1/2 (y): a pair
+  // (i, j) with coupling k adds k (1/m_i + 1/sqrt(m_i m_j)) to row i.
+  std::vector<Vec3>& acc = state_.cg_r;
+  for (int32_t i = 0; i < n; ++i) acc[i].setZero();
+  auto couple = [&](int32_t i, int32_t j, double k, double c) {
+    if (m.fixed[i]) return;
+    const double w = 1.0 / m.mass[i] + (m.fixed[j] ? 0.0 : 1.0 / std::sqrt(m.mass[i] * m.mass[j]));
+    acc[i].x() += k * w;
+    acc[i].y() += c * w;
+  };
+  if (terms.edges) {
+    // 1.5: the Voigt ratio a multiplies k_v and can grow beyond its rest value.
+    const double k = 1.5 * params_.k_v;
+    for (const auto& e : m.edges) {
+      couple(e[0], e[1], k, params_.c_v);
+      couple(e[1], e[0], k, params_.c_v);
+    }
+  }
+  if (terms.area) {
+    for (size_t f = 0; f < m.faces.size(); ++f) {
+      const double kf = 1.5 * params_.area_k / std::max(m.face_min_height[f], 1e-12);
+      for (int32_t i : m.faces[f]) {
+        for (int32_t j : m.faces[f]) couple(i, j, kf, 0.0);
+      }
+    }
+  }
+  if (terms.tet_volume) {
+    for (size_t t = 0; t < m.tets.size(); ++t) {
+      const double kt = (4.0 / 3.0) * params_.tet_k / std::max(m.tet_min_height[t], 1e-12);
+      for (int32_t i : m.tets[t]) {
+        for (int32_t j : m.tets[t]) couple(i, j, kt, 0.0);
+      }
+    }
+  }
+  double omega2 = 0.0, lambda_c = 0.0;
+  for (int32_t i = 0; i < n; ++i) {
+    omega2 = std::max(omega2, acc[i].x());
+    lambda_c = std::max(lambda_c, acc[i].y());
+  }
+  if (terms.global_volume) {
+    // Rest-shape volume gradient; a_i = sum over faces of (b - a) x (c - a) / 6.
+    std::vector<Vec3>& g = state_.cg_z;
+    for (int32_t i = 0; i < n; ++i) g[i].setZero();
+    for (const auto& fc : m.faces) {
+      const Vec3 gg = (m.rest_positions[fc[1]] - m.rest_positions[fc[0]])
+                          .cross(m.rest_positions[fc[2]] - m.rest_positions[fc[0]]) /
+                      6.0;
+      for (int32_t i : fc) g[i] += gg;
+    }
+    double sum = 0.0;
+    for (int32_t i = 0; i < n; ++i) sum += m.fixed[i] ? 0.0 : g[i].squaredNorm() / m.mass[i];
+    omega2 += 1.5 * params_.volume_k * sum;
+    lambda_c += params_.volume_c * sum;
+  }
+  const double rate = std::sqrt(omega2) + lambda_c;
+  h_stable_ = rate > 0.0 ? 0.9 * 2.0 / rate : 1e30;
+  for (int32_t i = 0; i < n; ++i) state_.cg_r[i].setZero();
+}
+
+int32_t SimObject::RequiredSubsteps(double dt) const {
+  const double k = std::ceil(dt / h_stable_);
+  return static_cast<int32_t>(std::clamp(k, 1.0, 1e9));
+}
+
+void SimObject::Wake() {
+  if (sleeping_) ++events_.wakes;
+  sleeping_ = false;
+  rest_time_ = 0.0;
+}
+
+bool SimObject::SetExternalForce(int32_t node, const Vec3& force) {
+  if (node < 0 || node >= model_.num_nodes || !force.allFinite()) return false;
+  state_.f_ext[node] = force;
+  if (!force.isZero(0.0)) Wake();
+  return true;
+}
+
+void SimObject::ClearExternalForces() {
+  for (auto& f : state_.f_ext) f.setZero();
+  Wake();
+}
+
+bool SimObject::SetFixed(int32_t node, bool fixed) {
+  if (node < 0 || node >= model_.num_nodes) return false;
+  model_.fixed[node] = fixed ? 1 : 0;
+  model_.inv_mass[node] = fixed ? 0.0 : 1.0 / model_.mass[node];
+  state_.v[node].setZero();
+  UpdateDerived();
+  Wake();
+  return true;
+}
+
+bool SimObject::SetNodeState(int32_t node, const Vec3& position, const Vec3& velocity) {
+  if (node < 0 || node >= model_.num_nodes || !position.allFinite() || !velocity.allFinite()) {
+    return false;
+  }
+  state_.x[node] = position;
+  state_.v[node] = velocity;
+  Wake();
+  return true;
+}
+
+void SimObject::Translate(const Vec3& offset) {
+  for (auto& x : state_.x) x += offset;
+  for (auto& v : state_.v) v.setZero();
+  SaveGood();
+  Wake();
+}
+
+void SimObject::Reset() {
+  state_.x = model_.rest_positions;  // same size: no allocation
+  for (auto& v : state_.v) v.setZero();
+  for (auto& a : state_.a) a = params_.voigt_ratio;
+  for (auto& t : state_.tension) t = 0.0;
+  for (auto& d : state_.dv) d.setZero();
+  state_.time = 0.0;
+  SaveGood();
+  Wake();
+}
+
+void SimObject::SaveGood() {
+  std::copy(state_.x.begin(), state_.x.end(), state_.good_x.begin());
+  std::copy(state_.v.begin(), state_.v.end(), state_.good_v.begin());
+  std::copy(state_.a.begin(), state_.a.end(), state_.good_a.begin());
+  std::copy(state_.tension.begin(), state_.tension.end(), state_.good_tension.begin());
+  state_.good_time = state_.time;
+  steps_since_good_ = 0;
+}
+
+void SimObject::RestoreGood() {
+  std::copy(state_.good_x.begin(), state_.good_x.end(), state_.x.begin());
+  // Velocities are dropped: replaying them would repeat the same blow-up.
+  for (auto& v : state_.v) v.setZero();
+  std::copy(state_.good_a.begin(), state_.good_a.end(), state_.a.begin());
+  std::copy(state_.good_tension.begin(), state_.good_tension.end(), state_.tension.begin());
+  for (auto& d : state_.dv) d.setZero();
+  for (auto& r : state_.floor_reaction) r.setZero();
+}
+
+StepResult SimObject::Step(double dt) {
+  StepResult r;
+  if (!(dt > 0.0) || !std::isfinite(dt)) {
+    r.invalid_dt = true;
+    return r;
+  }
+  ++events_.steps;
+  if (sleeping_) {
+    state_.time += dt;
+    ++events_.sleeping_ticks;
+    r.sleeping = true;
+    return r;
+  }
+  const internal::ActiveTerms terms = internal::DecideTerms(model_, params_);
+  for (auto& f : state_.floor_reaction) f.setZero();
+  int32_t substeps;
+  if (integrator_ == Integrator::kSymplecticEuler) {
+    substeps = RequiredSubsteps(dt);
+    if (substeps > params_.max_substeps) {
+      substeps = static_cast<int32_t>(params_.max_substeps);
+      r.substeps_capped = true;
+      ++events_.capped_ticks;
+    }
+    const double h = dt / substeps;
+    for (int32_t k = 0; k < substeps; ++k) {
+      internal::SymplecticEulerSubstep(model_, params_, terms, state_, h, dt);
+    }
+  } else {
+    substeps = static_cast<int32_t>(params_.implicit_substeps);
+    const double h = dt / substeps;
+    for (int32_t k = 0; k < substeps; ++k) {
+      const internal::SolveStats st =
+          internal::ImplicitEulerSubstep(model_, params_, terms, state_, h, dt);
+      r.solver_iterations += st.iterations;
+      r.solver_residual = st.residual;
+    }
+  }
+  state_.time += dt;
+  r.substeps = substeps;
+  events_.substeps += substeps;
+
+  // One pass: finite-ness, explosion, rest detection.
+  double max_speed2 = 0.0;
+  bool finite = true;
+  for (int32_t i = 0; i < model_.num_nodes; ++i) {
+    finite &= state_.x[i].allFinite() && state_.v[i].allFinite();
+    max_speed2 = std::max(max_speed2, state_.v[i].squaredNorm());
+  }
+  for (double a : state_.a) finite &= std::isfinite(a);
+  if (!finite || max_speed2 > params_.max_speed * params_.max_speed) {
+    RestoreGood();
+    r.restored = true;
+    ++events_.restores;
+    return r;
+  }
+  if (++steps_since_good_ >= kSnapshotInterval) SaveGood();
+
+  bool pushed = false;
+  for (const auto& f : state_.f_ext) pushed |= !f.isZero(0.0);
+  if (params_.sleep_time > 0.0 && !pushed &&
+      max_speed2 < params_.sleep_speed * params_.sleep_speed) {
+    rest_time_ += dt;
+    if (rest_time_ >= params_.sleep_time) {
+      sleeping_ = true;
+      for (auto& v : state_.v) v.setZero();
+    }
+  } else {
+    rest_time_ = 0.0;
+  }
+  return r;
+}
+
+Diagnostics SimObject::ComputeDiagnostics() const {
+  Diagnostics d;
+  const Model& m = model_;
+  const State& s = state_;
+  d.time = s.time;
+  d.rest_volume = m.rest_volume;
+  d.volume = internal::EnclosedVolume(m, s.x);
+  d.lowest_point = m.num_nodes > 0 ? s.x[0].y() : 0.0;
+  double max_speed2 = 0.0, max_disp2 = 0.0;
+  const double g = params_.gravity;
+  for (int32_t i = 0; i < m.num_nodes; ++i) {
+    d.finite &= s.x[i].allFinite() && s.v[i].allFinite();
+    d.kinetic_energy += 0.5 * m.mass[i] * s.v[i].squaredNorm();
+    d.gravity_energy += m.mass[i] * g * s.x[i].y();
+    d.lowest_point = std::min(d.lowest_point, s.x[i].y());
+    max_disp2 = std::max(max_disp2, (s.x[i] - m.rest_positions[i]).squaredNorm());
+    max_speed2 = std::max(max_speed2, s.v[i].squaredNorm());
+    d.floor_force += s.floor_reaction[i];
+    d.external_force += s.f_ext[i];
+  }
+  for (size_t k = 0; k < m.edges.size(); ++k) {
+    const double l = (s.x[m.edges[k][1]] - s.x[m.edges[k][0]]).norm();
+    const double stretch = s.a[k] * l - params_.voigt_ratio * m.edge_rest_length[k];
+    d.elastic_energy += 0.5 * params_.k_v * stretch * stretch;
+  }
+  if (!m.faces.empty()) {
+    const double dv = d.volume - m.rest_volume;
+    d.elastic_energy += 0.5 * params_.volume_k * dv * dv;
+  }
+  d.potential_energy = d.gravity_energy + d.elastic_energy;
+  d.max_displacement = std::sqrt(max_disp2);
+  d.max_speed = std::sqrt(max_speed2);
+  return d;
+}
+
+}  // namespace rheo::sim

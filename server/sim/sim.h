@@ -1,0 +1,131 @@
+// rheo::sim: the rheological object of the paper (section 6, eqs. 2-6) on a tetrahedral mesh,
+// stepped by the daemon's 1 kHz loop. Build allocates; Step, the force input and the readers
+// never allocate.
+//
+//   auto obj = SimObject::Create(mesh, "soft-jelly");      // allocates
+//   obj->SetParameter("k_v", 200.0);                       // validated, wakes the object
+//   obj->SetExternalForce(node, {0, -1, 0});               // tool force [N]
+//   StepResult r = obj->Step(1e-3);                        // one tick, substeps inside
+//   std::span<const Vec3> x = obj->positions();            // for frames
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string_view>
+
+#include "common/geometry.h"
+#include "common/status.h"
+#include "sim/model.h"
+#include "sim/params.h"
+#include "sim/state.h"
+
+namespace rheo::sim {
+
+/// What one tick did.
+struct StepResult {
+  int32_t substeps = 0;           // substeps taken (0 when asleep or refused)
+  int32_t solver_iterations = 0;  // CG iterations summed over substeps (implicit only)
+  double solver_residual = 0.0;   // last relative CG residual (implicit only)
+  bool sleeping = false;          // the object was at rest and the tick did no work
+  bool restored = false;          // non-finite or exploding state found; last good state restored
+  bool substeps_capped = false;   // explicit stability asked for more than max_substeps
+  bool invalid_dt = false;        // dt was not finite and positive; nothing was done
+};
+
+/// Counters of events since the object was built.
+struct EventCounts {
+  int64_t steps = 0;
+  int64_t substeps = 0;
+  int64_t restores = 0;      // recoveries from a non-finite or exploding state
+  int64_t capped_ticks = 0;  // ticks that hit max_substeps
+  int64_t sleeping_ticks = 0;
+  int64_t wakes = 0;
+};
+
+/// Read on demand (costs one pass over the object).
+struct Diagnostics {
+  double time = 0.0;                   // [s]
+  double volume = 0.0;                 // enclosed by the surface [m^3]
+  double rest_volume = 0.0;            // [m^3]
+  double kinetic_energy = 0.0;         // [J]
+  double gravity_energy = 0.0;         // m g y summed, relative to y = 0 [J]
+  double elastic_energy = 0.0;         // Voigt springs + global volume condition [J]
+  double potential_energy = 0.0;       // gravity + elastic [J]
+  double lowest_point = 0.0;           // smallest node y [m]
+  double max_displacement = 0.0;       // largest |x - rest position| [m]
+  double max_speed = 0.0;              // [m/s]
+  Vec3 floor_force = Vec3::Zero();     // total floor reaction during the last tick [N]
+  Vec3 external_force = Vec3::Zero();  // total tool force applied [N]
+  bool finite = true;
+};
+
+class SimObject {
+ public:
+  /// Builds model and state from a mesh (allocates). Fails on a bad mesh or parameters.
+  static Result<std::unique_ptr<SimObject>> Create(const TetMesh& mesh, const Parameters& params,
+                                                   Integrator integrator);
+  static Result<std::unique_ptr<SimObject>> Create(const TetMesh& mesh, std::string_view preset);
+  /// From a prebuilt model (e.g. BuildModelFromParts); masses are taken from the model.
+  static Result<std::unique_ptr<SimObject>> Create(Model model, const Parameters& params,
+                                                   Integrator integrator);
+
+  /// Sets one parameter by name, validated (INVALID_ARGUMENT names it and its range). Takes
+  /// effect on the next Step and wakes the object. Does not allocate.
+  Status SetParameter(std::string_view name, double value);
+  Status SetParameters(const Parameters& params);
+  void SetIntegrator(Integrator integrator);
+
+  /// Advances one tick of dt seconds (substeps inside). Never allocates.
+  StepResult Step(double dt);
+
+  /// Tool force on one node [N], held until changed. Out-of-range nodes are ignored (returns
+  /// false). A non-zero force wakes the object.
+  bool SetExternalForce(int32_t node, const Vec3& force);
+  void ClearExternalForces();
+  /// Holds a node in place (or releases it) at its current position.
+  bool SetFixed(int32_t node, bool fixed);
+  /// Moves a node to a position with a velocity (e.g. a held node dragged by the tool).
+  bool SetNodeState(int32_t node, const Vec3& position, const Vec3& velocity);
+  /// Rigidly translates the object and zeroes velocities (e.g. drop height).
+  void Translate(const Vec3& offset);
+  /// Back to the rest shape, zero velocity, rest Voigt ratios.
+  void Reset();
+  void Wake();
+
+  std::span<const Vec3> positions() const { return state_.x; }
+  std::span<const Vec3> velocities() const { return state_.v; }
+  std::span<const double> voigt_ratios() const { return state_.a; }
+  std::span<const double> edge_tensions() const { return state_.tension; }
+  /// Floor force on each node during the last tick [N] (contact reaction).
+  std::span<const Vec3> floor_reaction() const { return state_.floor_reaction; }
+  const Model& model() const { return model_; }
+  const Parameters& parameters() const { return params_; }
+  Integrator integrator() const { return integrator_; }
+  const EventCounts& events() const { return events_; }
+  bool sleeping() const { return sleeping_; }
+  double time() const { return state_.time; }
+  /// Explicit substeps per tick of dt that the stability bound asks for.
+  int32_t RequiredSubsteps(double dt) const;
+
+  Diagnostics ComputeDiagnostics() const;
+
+ private:
+  SimObject(Model model, const Parameters& params, Integrator integrator);
+  void UpdateDerived();
+  void SaveGood();
+  void RestoreGood();
+  bool CheckState() const;
+
+  Model model_;
+  Parameters params_;
+  Integrator integrator_;
+  State state_;
+  double h_stable_ = 0.0;  // explicit stability bound on the substep [s]
+  double rest_time_ = 0.0;
+  bool sleeping_ = false;
+  int32_t steps_since_good_ = 0;
+  EventCounts events_;
+};
+
+}  // namespace rheo::sim

@@ -1,0 +1,47 @@
+// The changing part of a simulated object (like MuJoCo's mjData): allocated once when the object
+// is built, then only overwritten, so a step never allocates.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "common/geometry.h"
+#include "sim/model.h"
+
+namespace rheo::sim {
+
+struct State {
+  double time = 0.0;            // simulated time [s]
+  std::vector<Vec3> x;          // node positions (n) [m]
+  std::vector<Vec3> v;          // node velocities (n) [m/s]
+  std::vector<double> a;        // Voigt length ratio per edge (e) [-]
+  std::vector<double> tension;  // last tension per edge, drives eq. 3 (e) [N]
+
+  std::vector<Vec3> f_ext;           // external (tool) force per node (n) [N]
+  std::vector<Vec3> floor_reaction;  // floor force on each node during the last tick (n) [N]
+
+  // Scratch, sized once.
+  std::vector<Vec3> f;         // force accumulator (n) [N]
+  std::vector<Vec3> vol_grad;  // gradient of the enclosed volume per node (n) [m^2]
+  // Per-edge linearisation for the implicit integrator.
+  std::vector<Vec3> edge_dir;        // unit edge vectors (e)
+  std::vector<double> edge_axial_k;  // h^2 k_eff along the edge (e) [N s/m]
+  std::vector<double> edge_axial_c;  // h c_eff along the edge (e) [N s/m]
+  std::vector<double> edge_lateral;  // h^2 max(T,0)/l across the edge (e) [N s/m]
+  std::vector<double> shape_coef;    // h^2 sigma per face then per tet (k + m) [N s/m]
+  std::vector<Vec3> shape_dir;       // force directions, 3 per face then 4 per tet (3k + 4m)
+  double global_k = 0.0;             // h^2 K of the rank-one volume term [N s/m^5]
+  double global_c = 0.0;             // h C of the rank-one volume term [N s/m^5]
+  std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, dv, rhs;  // CG vectors (n)
+  std::vector<double> diag;                           // Jacobi preconditioner (n)
+
+  // Last good state for recovery.
+  std::vector<Vec3> good_x, good_v;
+  std::vector<double> good_a, good_tension;
+  double good_time = 0.0;
+};
+
+/// Sizes every array for `model` and sets the rest state.
+void InitState(const Model& model, double voigt_ratio, State& state);
+
+}  // namespace rheo::sim

@@ -1,0 +1,224 @@
+// Parameters, presets, model building and each shape-keeping term (eqs. 4-6) on its own.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "common/tet_mesh_io.h"
+#include "sim/forces.h"
+#include "sim/primitives.h"
+#include "sim/sim.h"
+
+// common/tet_mesh_io.cc needs this instantiation but does not include <Eigen/Geometry>.
+using Vec3Diff = Eigen::CwiseBinaryOp<Eigen::internal::scalar_difference_op<double, double>,
+                                      const rheo::Vec3, const rheo::Vec3>;
+template Eigen::MatrixBase<Vec3Diff>::cross_product_return_type<Vec3Diff>::type
+Eigen::MatrixBase<Vec3Diff>::cross<Vec3Diff>(const Eigen::MatrixBase<Vec3Diff>&) const;
+
+namespace rheo::sim {
+namespace {
+
+// Only the named terms on: no gravity, floor or edge springs, light edge damping.
+Parameters Isolated() {
+  Parameters p;
+  p.k_v = 0.0;
+  p.c_v = 0.02;
+  p.damper_b = 0.0;
+  p.damper_a = 1.0;
+  p.volume_k = p.volume_c = p.area_k = p.tet_k = 0.0;
+  p.gravity = 0.0;
+  p.floor_enabled = 0.0;
+  p.sleep_time = 0.0;
+  p.max_substeps = 1000;
+  return p;
+}
+
+TetMesh OneTet(double scale) {
+  TetMesh m;
+  m.positions = {Vec3(0, 0, 0), Vec3(scale, 0, 0), Vec3(0, scale, 0), Vec3(0, 0, scale)};
+  m.tets = {{0, 1, 2, 3}};
+  return m;
+}
+
+double TetVolume(std::span<const Vec3> x) {
+  return (x[1] - x[0]).dot((x[2] - x[0]).cross(x[3] - x[0])) / 6.0;
+}
+
+TEST(Parameters, OutOfRangeNamesParameterAndRange) {
+  Parameters p;
+  Status s = SetParameterByName(p, "k_v", -3.0);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().code, ErrorCode::kInvalidArgument);
+  EXPECT_NE(s.error().message.find("k_v"), std::string::npos);
+  EXPECT_NE(s.error().message.find("[0, 1e+07] N/m"), std::string::npos) << s.error().message;
+  EXPECT_EQ(p.k_v, Parameters{}.k_v);  // unchanged
+  s = SetParameterByName(p, "no_such", 1.0);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("known:"), std::string::npos);
+  EXPECT_FALSE(SetParameterByName(p, "c_v", std::nan("")).ok());
+  EXPECT_FALSE(SetParameterByName(p, "f_min", p.f_max + 1.0).ok());  // cross-check
+  EXPECT_TRUE(SetParameterByName(p, "k_v", 123.0).ok());
+  EXPECT_EQ(p.k_v, 123.0);
+  EXPECT_EQ(*GetParameterByName(p, "k_v"), 123.0);
+}
+
+TEST(Parameters, EveryTableEntryRoundTripsAndRejectsBothSides) {
+  for (const ParameterInfo& info : ParameterTable()) {
+    Parameters p;
+    const double mid = std::clamp(p.*(info.field), info.min, info.max);
+    if (std::string(info.name) == "f_min" || std::string(info.name) == "f_max") continue;
+    EXPECT_TRUE(SetParameterByName(p, info.name, mid).ok()) << info.name;
+    EXPECT_FALSE(SetParameterByName(p, info.name, info.max * 2 + 1).ok()) << info.name;
+    EXPECT_FALSE(SetParameterByName(p, info.name, info.min - 1).ok()) << info.name;
+  }
+}
+
+TEST(Presets, AllValidAndDistinct) {
+  ASSERT_EQ(Presets().size(), 4u);
+  for (const char* name : {"soft-jelly", "hard-jelly", "clay", "organ"}) {
+    Result<Preset> p = FindPreset(name);
+    ASSERT_TRUE(p.ok()) << name;
+    EXPECT_TRUE(ValidateParameters(p->params).ok()) << name;
+  }
+  EXPECT_FALSE(FindPreset("steel").ok());
+  EXPECT_LT(FindPreset("soft-jelly")->params.k_v, FindPreset("hard-jelly")->params.k_v);
+  // Clay yields at the lowest force: it is the plastic one.
+  EXPECT_LT(FindPreset("clay")->params.f_min, FindPreset("soft-jelly")->params.f_min);
+}
+
+TEST(Model, MassesSumToDensityTimesVolumeAndEdgesAreUnique) {
+  auto mesh = MakeBoxTetMesh(3, 2, 4, Vec3(0.3, 0.2, 0.4));
+  ASSERT_TRUE(mesh.ok());
+  Result<Model> m = BuildModel(*mesh, 1000.0);
+  ASSERT_TRUE(m.ok());
+  double mass = 0.0, tet_vol = 0.0;
+  for (double x : m->mass) mass += x;
+  for (double v : m->tet_rest_volume) tet_vol += v;
+  EXPECT_NEAR(tet_vol, 0.3 * 0.2 * 0.4, 1e-12);
+  EXPECT_NEAR(m->rest_volume, tet_vol, 1e-12);  // surface encloses exactly the tets
+  EXPECT_NEAR(mass, 1000.0 * tet_vol, 1e-9);
+  // Euler: V - E + F - T = 1 for a ball-like tet complex.
+  const int64_t v = m->num_nodes, e = m->edges.size(), t = m->tets.size();
+  int64_t f_int = (4 * t - static_cast<int64_t>(m->faces.size())) / 2;
+  EXPECT_EQ(v - e + (f_int + static_cast<int64_t>(m->faces.size())) - t, 1);
+  EXPECT_EQ(m->inverted_tets, 0);
+}
+
+TEST(Model, RefusesBadMeshesWithAMessage) {
+  TetMesh m = OneTet(0.1);
+  m.tets[0][3] = 7;
+  Result<Model> r = BuildModel(m, 1000.0);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("tetrahedron 0"), std::string::npos) << r.error().message;
+  TetMesh empty;
+  EXPECT_FALSE(BuildModel(empty, 1000.0).ok());
+  TetMesh nan = OneTet(0.1);
+  nan.positions[2].x() = std::nan("");
+  EXPECT_FALSE(BuildModel(nan, 1000.0).ok());
+}
+
+TEST(Model, NegativelyOrientedTetsAreFlipped) {
+  TetMesh m = OneTet(0.1);
+  std::swap(m.tets[0][1], m.tets[0][2]);
+  Result<Model> r = BuildModel(m, 1000.0);
+  ASSERT_TRUE(r.ok());
+  EXPECT_GT(r->tet_rest_volume[0], 0.0);
+  EXPECT_NEAR(r->rest_volume, 0.1 * 0.1 * 0.1 / 6.0, 1e-15);
+}
+
+TEST(ShapeTerms, CompressedTetReturnsToRestVolume) {
+  for (Integrator integrator : {Integrator::kSymplecticEuler, Integrator::kImplicitEuler}) {
+    Parameters p = Isolated();
+    p.tet_k = 0.5;  // eq. 6 only
+    auto obj = SimObject::Create(OneTet(0.05), p, integrator);
+    ASSERT_TRUE(obj.ok());
+    SimObject& s = **obj;
+    const double v0 = s.model().tet_rest_volume[0];
+    const Vec3 c = (s.positions()[0] + s.positions()[1] + s.positions()[2] + s.positions()[3]) / 4;
+    for (int i = 0; i < 4; ++i) s.SetNodeState(i, c + 0.7 * (s.positions()[i] - c), Vec3::Zero());
+    EXPECT_NEAR(TetVolume(s.positions()) / v0, 0.343, 1e-9);
+    for (int k = 0; k < 3000; ++k) s.Step(1e-3);
+    EXPECT_NEAR(TetVolume(s.positions()) / v0, 1.0, 1e-3) << IntegratorName(integrator);
+    // Eq. 6 sums to zero: the centroid stays put.
+    const Vec3 c1 = (s.positions()[0] + s.positions()[1] + s.positions()[2] + s.positions()[3]) / 4;
+    EXPECT_LT((c1 - c).norm(), 1e-6) << IntegratorName(integrator);  // CG tolerance
+  }
+}
+
+TEST(ShapeTerms, InvertedTetIsPushedBackThroughItsFace) {
+  Parameters p = Isolated();
+  p.tet_k = 0.5;
+  auto obj = SimObject::Create(OneTet(0.05), p, Integrator::kSymplecticEuler);
+  ASSERT_TRUE(obj.ok());
+  SimObject& s = **obj;
+  s.SetNodeState(3, Vec3(0.0, 0.0, -0.02), Vec3::Zero());  // through the opposite face
+  ASSERT_LT(TetVolume(s.positions()), 0.0);
+  for (int k = 0; k < 3000; ++k) s.Step(1e-3);
+  EXPECT_NEAR(TetVolume(s.positions()) / s.model().tet_rest_volume[0], 1.0, 1e-3);
+}
+
+TEST(ShapeTerms, GlobalVolumeConditionRestoresEnclosedVolume) {
+  auto mesh = MakeBoxTetMesh(2, 2, 2, Vec3(0.1, 0.1, 0.1));
+  ASSERT_TRUE(mesh.ok());
+  Parameters p = Isolated();
+  p.volume_k = 2e7;  // eq. 4 only
+  p.volume_c = 1e5;
+  auto obj = SimObject::Create(*mesh, p, Integrator::kSymplecticEuler);
+  ASSERT_TRUE(obj.ok());
+  SimObject& s = **obj;
+  for (int i = 0; i < s.model().num_nodes; ++i) {
+    s.SetNodeState(i, 0.85 * s.positions()[i], Vec3::Zero());
+  }
+  EXPECT_NEAR(s.ComputeDiagnostics().volume / s.model().rest_volume, 0.614125, 1e-9);
+  for (int k = 0; k < 4000; ++k) s.Step(1e-3);
+  EXPECT_NEAR(s.ComputeDiagnostics().volume / s.model().rest_volume, 1.0, 2e-3);
+}
+
+TEST(ShapeTerms, AreaSpringsRestoreStretchedTriangle) {
+  // A flat triangle as a lone surface face (eq. 5 only).
+  const Vec3 pos[3] = {Vec3(0, 0, 0), Vec3(0.1, 0, 0), Vec3(0, 0.1, 0)};
+  const double masses[3] = {0.01, 0.01, 0.01};
+  const std::array<int32_t, 3> faces[1] = {{0, 1, 2}};
+  const std::array<int32_t, 2> edges[3] = {{0, 1}, {1, 2}, {0, 2}};
+  Result<Model> model = BuildModelFromParts(pos, masses, edges, faces, {});
+  ASSERT_TRUE(model.ok());
+  Parameters p = Isolated();
+  p.area_k = 0.3;
+  auto obj = SimObject::Create(std::move(*model), p, Integrator::kSymplecticEuler);
+  ASSERT_TRUE(obj.ok());
+  SimObject& s = **obj;
+  for (int i = 0; i < 3; ++i) s.SetNodeState(i, 1.3 * s.positions()[i], Vec3::Zero());
+  auto area = [&] {
+    auto x = s.positions();
+    return 0.5 * (x[1] - x[0]).cross(x[2] - x[0]).norm();
+  };
+  EXPECT_NEAR(area() / 0.005, 1.69, 1e-9);
+  for (int k = 0; k < 5000; ++k) s.Step(1e-3);
+  EXPECT_NEAR(area() / 0.005, 1.0, 1e-3);
+}
+
+TEST(Terms, OffTermsAreSkipped) {
+  Result<Model> m = BuildModel(OneTet(0.1), 1000.0);
+  ASSERT_TRUE(m.ok());
+  Parameters p = Isolated();
+  internal::ActiveTerms t = internal::DecideTerms(*m, p);
+  EXPECT_FALSE(t.global_volume || t.area || t.tet_volume || t.gravity || t.floor ||
+               t.nonlinear_damper);
+  p.tet_k = 1.0;
+  p.damper_b = 1.0;
+  t = internal::DecideTerms(*m, p);
+  EXPECT_TRUE(t.tet_volume && t.nonlinear_damper);
+}
+
+TEST(Vtu, SimulatesAMeshReadBackFromVtu) {
+  auto mesh = MakeBoxTetMesh(2, 2, 2, Vec3(0.05, 0.05, 0.05));
+  ASSERT_TRUE(mesh.ok());
+  Result<TetMesh> back = ReadVtu(WriteVtu(*mesh));
+  ASSERT_TRUE(back.ok());
+  auto obj = SimObject::Create(*back, "organ");
+  ASSERT_TRUE(obj.ok());
+  for (int k = 0; k < 100; ++k) (**obj).Step(1e-3);
+  EXPECT_TRUE((**obj).ComputeDiagnostics().finite);
+}
+
+}  // namespace
+}  // namespace rheo::sim
