@@ -1,0 +1,27 @@
+// What the daemon calls to get a SPIDAR-G: load a frame file, open the controller it names.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "drivers/spidar_config.h"
+#include "drivers/spidar_g.h"
+
+namespace rheo::drivers {
+
+/// Reads and parses a frame layout file (drivers/config/spidar_g_*.json).
+Result<SpidarConfig> LoadSpidarConfigFile(const std::string& path);
+
+struct SpidarOpenOptions {
+  /// Longest wait for a board's reply in an exchange [us]. 2 ms suits a real board on a
+  /// dedicated serial line; an emulator on a busy machine may need more.
+  int reply_timeout_us = 2000;
+};
+
+/// Builds a SPIDAR-G on the controller the config names and opens it (not yet calibrated).
+/// UART boards: `port` is the serial device (e.g. /dev/ttyUSB0, or SpidarEmulator::pty_path()).
+/// SH4: `port` is ignored; the board is found by its USB id (unverified protocol).
+Result<std::unique_ptr<SpidarG>> OpenSpidarG(const SpidarConfig& config, const std::string& port,
+                                             const SpidarOpenOptions& options = {});
+
+}  // namespace rheo::drivers

@@ -1,0 +1,309 @@
+#include "drivers/spidar_emulator.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <stdlib.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <ctime>
+
+#include "drivers/spidar_kinematics.h"
+
+namespace rheo::drivers {
+namespace {
+
+int64_t NowNs() {
+  timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
+}
+
+Vec3 RotationVector(const Eigen::Quaterniond& q) {
+  Eigen::AngleAxisd aa(q);
+  double angle = aa.angle();
+  if (angle > M_PI) angle -= 2.0 * M_PI;
+  return aa.axis() * angle;
+}
+
+}  // namespace
+
+Result<std::unique_ptr<SpidarEmulator>> SpidarEmulator::Start(const SpidarConfig& config,
+                                                              const EmulatorOptions& options) {
+  if (Status s = ValidateSpidarConfig(config, "emulator config"); !s.ok()) return s.error();
+  if (!(options.grip_mass > 0.0) || !(options.physics_step > 0.0) ||
+      !(options.lockstep_dt >= options.physics_step)) {
+    return InvalidArgument(
+        "emulator options: grip_mass and physics_step must be > 0 and lockstep_dt >= "
+        "physics_step");
+  }
+  std::unique_ptr<SpidarEmulator> e(new SpidarEmulator(config, options));
+  e->master_fd_ = posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
+  if (e->master_fd_ < 0 || grantpt(e->master_fd_) != 0 || unlockpt(e->master_fd_) != 0) {
+    return Error{ErrorCode::kUnavailable,
+                 std::string("emulator: cannot create a pseudo-terminal: ") + std::strerror(errno)};
+  }
+  char name[128];
+  if (ptsname_r(e->master_fd_, name, sizeof name) != 0) {
+    return Error{ErrorCode::kUnavailable, "emulator: ptsname failed"};
+  }
+  e->pty_path_ = name;
+  e->slave_fd_ = ::open(name, O_RDWR | O_NOCTTY | O_CLOEXEC);
+  if (e->slave_fd_ < 0) {
+    return Error{ErrorCode::kUnavailable, "emulator: cannot open " + e->pty_path_};
+  }
+  // Raw from the start: no echo or line editing may ever touch the protocol bytes.
+  termios tio{};
+  tcgetattr(e->slave_fd_, &tio);
+  cfmakeraw(&tio);
+  tcsetattr(e->slave_fd_, TCSANOW, &tio);
+  const int flags = fcntl(e->master_fd_, F_GETFL);
+  fcntl(e->master_fd_, F_SETFL, flags | O_NONBLOCK);
+  e->last_advance_ns_ = NowNs();
+  e->thread_ = std::thread([p = e.get()] { p->Run(); });
+  return e;
+}
+
+SpidarEmulator::SpidarEmulator(const SpidarConfig& config, const EmulatorOptions& options)
+    : config_(config), options_(options) {
+  info_.board_id = options.board_id;
+  info_.model = options.model;
+  info_.n_target = 0;
+  info_.n_motor = kSpidarStrings;
+  info_.n_current = kSpidarStrings;
+  info_.n_force = 4;
+  info_.n_touch = 0;
+  inertia_ = options.grip_inertia > 0.0
+                 ? options.grip_inertia
+                 : 0.4 * options.grip_mass * config.grip_radius * config.grip_radius;
+  state_.pose = options.initial_pose;
+  state_.holding = options.hand_holds_at_start;
+  hand_target_ = options.initial_pose;
+  StringGeometry g;
+  ComputeStringGeometry(config_, state_.pose, &g);
+  power_on_length_ = g.length;
+  last_length_ = g.length;
+  state_.lengths = g.length;
+}
+
+SpidarEmulator::~SpidarEmulator() {
+  Stop();
+  if (slave_fd_ >= 0) ::close(slave_fd_);
+  if (master_fd_ >= 0) ::close(master_fd_);
+}
+
+void SpidarEmulator::Stop() {
+  stop_.store(true, std::memory_order_release);
+  if (thread_.joinable()) thread_.join();
+}
+
+void SpidarEmulator::HoldHand(const Pose& target) {
+  std::lock_guard lock(mutex_);
+  hand_script_ = nullptr;
+  hand_target_ = target;
+  state_.holding = true;
+}
+
+void SpidarEmulator::ScriptHand(std::function<Pose(double)> script) {
+  std::lock_guard lock(mutex_);
+  hand_script_ = std::move(script);
+  state_.holding = true;
+}
+
+void SpidarEmulator::ReleaseHand() {
+  std::lock_guard lock(mutex_);
+  hand_script_ = nullptr;
+  state_.holding = false;
+}
+
+void SpidarEmulator::SetHandWrench(const Wrench& wrench) {
+  std::lock_guard lock(mutex_);
+  hand_wrench_ = wrench;
+}
+
+GripSnapshot SpidarEmulator::Snapshot() const {
+  std::lock_guard lock(mutex_);
+  return state_;
+}
+
+void SpidarEmulator::Run() {
+  std::array<uint8_t, 256> buf;
+  while (!stop_.load(std::memory_order_acquire)) {
+    pollfd p{master_fd_, POLLIN, 0};
+    // Real time: wake at least every 0.5 ms so the grip keeps moving between commands.
+    const int r = poll(&p, 1, options_.lockstep ? 5 : 1);
+    if (!options_.lockstep) {
+      const int64_t now = NowNs();
+      std::lock_guard lock(mutex_);
+      // After a long pause (debugger, overload) do not replay more than 50 ms of physics.
+      Advance(std::min((now - last_advance_ns_) * 1e-9, 0.05));
+      last_advance_ns_ = now;
+    }
+    if (r <= 0 || !(p.revents & POLLIN)) continue;
+    const ssize_t n = ::read(master_fd_, buf.data(), buf.size());
+    for (ssize_t i = 0; i < n; ++i) OnByte(buf[i]);
+  }
+}
+
+void SpidarEmulator::OnByte(uint8_t byte) {
+  if (need_ > 0) {
+    frame_[have_++] = byte;
+    if (--need_ == 0 && pending_ == uart::Command::kCurrent) {
+      if (pending_board_ == info_.board_id) ApplyCurrentCommand();
+      pending_ = uart::Command::kNone;
+    }
+    return;
+  }
+  if (byte == 0) return;  // padding, resynchronisation, or "none" to board 0
+  const uart::Command cmd = uart::HeaderCommand(byte);
+  const int board = uart::HeaderBoard(byte);
+  switch (cmd) {
+    case uart::Command::kNone: return;
+    case uart::Command::kBoardInfo:
+      if (board == info_.board_id) {
+        std::array<uint8_t, uart::kBoardInfoReplySize> reply;
+        uart::EncodeBoardInfoReply(info_, reply);
+        SendReply(reply);
+        std::lock_guard lock(mutex_);
+        ++state_.enumerations;
+      }
+      return;
+    case uart::Command::kCurrent:
+      pending_ = cmd;
+      pending_board_ = board;
+      frame_[0] = byte;
+      have_ = 1;
+      need_ = 2 * static_cast<size_t>(info_.n_motor);
+      return;
+    case uart::Command::kResetSensor:
+      if (board == info_.board_id) {
+        std::lock_guard lock(mutex_);
+        power_on_length_ = state_.lengths;
+      }
+      return;
+    default: {
+      std::lock_guard lock(mutex_);
+      ++state_.protocol_errors;
+      return;
+    }
+  }
+}
+
+void SpidarEmulator::ApplyCurrentCommand() {
+  std::array<int16_t, kSpidarStrings> values{};
+  uart::DecodeCurrentCommand(std::span(frame_.data(), have_), info_.n_motor, values);
+  uart::SensorReply reply;
+  {
+    std::lock_guard lock(mutex_);
+    for (int i = 0; i < kSpidarStrings; ++i) {
+      const SpidarString& s = config_.strings[i];
+      const double t =
+          s.command_sign * values[i] / (config_.board.digits_per_volt * s.volts_per_newton);
+      state_.tensions[i] = std::max(t, 0.0);  // a string pulls; it cannot push
+    }
+    state_.last_command = values;
+    state_.last_command_ns = NowNs();
+    ++state_.current_commands;
+    if (options_.lockstep) Advance(options_.lockstep_dt);
+    Encoders(&reply);
+  }
+  std::array<uint8_t, uart::kMaxFrameSize> out;
+  const size_t n = uart::EncodeCurrentReply(info_.board_id, info_, reply, out);
+  SendReply(std::span(out.data(), n));
+}
+
+void SpidarEmulator::Encoders(uart::SensorReply* reply) const {
+  for (int i = 0; i < kSpidarStrings; ++i) {
+    const double mpc = config_.strings[i].metres_per_count;
+    const auto count =
+        static_cast<int64_t>(std::floor((state_.lengths[i] - power_on_length_[i]) / mpc));
+    reply->position[i] = static_cast<int16_t>(static_cast<uint16_t>(count & 0xFFFF));
+    // Velocity in counts per millisecond over the last advance, saturating.
+    const double ms = std::max(last_advance_s_ * 1e3, 1e-3);
+    const double rate = (state_.lengths[i] - last_length_[i]) / mpc / ms;
+    reply->velocity[i] = static_cast<int16_t>(std::clamp(rate, -32767.0, 32767.0));
+  }
+}
+
+void SpidarEmulator::Advance(double seconds) {
+  last_length_ = state_.lengths;
+  last_advance_s_ = seconds;
+  const double h = options_.physics_step;
+  double left = seconds;
+  while (left > 0.5 * h) {
+    Step(h);
+    left -= h;
+  }
+}
+
+void SpidarEmulator::Step(double h) {
+  GripSnapshot& s = state_;
+  const Eigen::Matrix3d r = s.pose.orientation.toRotationMatrix();
+  Vec3 f = Vec3::Zero(), tau = Vec3::Zero();
+  for (int i = 0; i < kSpidarStrings; ++i) {
+    const SpidarString& str = config_.strings[i];
+    const Vec3 rg = r * str.grip_point;
+    const Vec3 w = str.motor_exit - (s.pose.position + rg);
+    const double len = w.norm();
+    s.lengths[i] = len;
+    if (len <= 0.0) continue;
+    const Vec3 pull = s.tensions[i] * w / len;
+    f += pull;
+    tau += rg.cross(pull);
+  }
+  s.strings.force = f;
+  s.strings.torque = tau;
+
+  Vec3 fh = hand_wrench_.force, th = hand_wrench_.torque;
+  if (s.holding) {
+    if (hand_script_) hand_target_ = hand_script_(s.time);
+    fh += options_.hand_stiffness * (hand_target_.position - s.pose.position) -
+          options_.hand_damping * s.velocity;
+    th += options_.hand_angular_stiffness *
+              RotationVector(hand_target_.orientation * s.pose.orientation.conjugate()) -
+          options_.hand_angular_damping * s.angular_velocity;
+  }
+  s.hand.force = fh;
+  s.hand.torque = th;
+
+  const Vec3 force =
+      f + fh + options_.grip_mass * options_.gravity - options_.linear_damping * s.velocity;
+  const Vec3 torque = tau + th - options_.angular_damping * s.angular_velocity;
+  // Semi-implicit Euler: velocities first, then positions with the new velocities.
+  s.velocity += h * force / options_.grip_mass;
+  s.angular_velocity += h * torque / inertia_;
+  s.pose.position += h * s.velocity;
+  const Vec3 dr = h * s.angular_velocity;
+  if (dr.norm() > 0.0) {
+    s.pose.orientation =
+        Eigen::Quaterniond(Eigen::AngleAxisd(dr.norm(), dr.normalized())) * s.pose.orientation;
+    s.pose.orientation.normalize();
+  }
+  s.time += h;
+  StringGeometry g;
+  ComputeStringGeometry(config_, s.pose, &g);
+  s.lengths = g.length;
+}
+
+void SpidarEmulator::SendReply(std::span<const uint8_t> bytes) {
+  size_t done = 0;
+  int spins = 0;
+  while (done < bytes.size() && spins < 1000) {
+    const ssize_t n = ::write(master_fd_, bytes.data() + done, bytes.size() - done);
+    if (n > 0) {
+      done += static_cast<size_t>(n);
+    } else if (n < 0 && errno != EAGAIN && errno != EINTR) {
+      return;
+    } else {
+      pollfd p{master_fd_, POLLOUT, 0};
+      poll(&p, 1, 1);
+      ++spins;
+    }
+  }
+}
+
+}  // namespace rheo::drivers

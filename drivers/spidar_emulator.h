@@ -1,0 +1,125 @@
+// A simulated SPIDAR-G: a grip on 8 strings with rigid-body dynamics and a hand, behind an open
+// UART motor board that speaks the real protocol byte for byte on a pseudo-terminal.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "drivers/haptic_device.h"
+#include "drivers/spidar_config.h"
+#include "drivers/uart_protocol.h"
+
+namespace rheo::drivers {
+
+struct EmulatorOptions {
+  double grip_mass = 0.05;               // [kg]
+  double grip_inertia = 0.0;             // [kg m^2]; 0: a solid ball of the config's grip radius
+  double linear_damping = 0.2;           // air and string friction [N s/m]
+  double angular_damping = 2e-5;         // [N m s/rad]
+  Vec3 gravity = Vec3(0.0, -9.81, 0.0);  // [m/s^2], device frame (y up)
+  double physics_step = 1e-4;            // integration step [s]
+  // The hand: a spring-damper between the grip and a target pose while it holds the grip.
+  double hand_stiffness = 2000.0;       // [N/m]
+  double hand_damping = 10.0;           // [N s/m]
+  double hand_angular_stiffness = 0.5;  // [N m/rad]
+  double hand_angular_damping = 2e-3;   // [N m s/rad]
+  Pose initial_pose;                    // grip pose at power-on (counters read 0 there)
+  bool hand_holds_at_start = true;      // the hand holds the grip at initial_pose
+  // Lockstep: physics advances lockstep_dt per "current" command instead of with the wall
+  // clock, so tests are deterministic and need no sleeps.
+  bool lockstep = false;
+  double lockstep_dt = 1e-3;  // [s]
+  int board_id = 0;
+  int model = 7;  // reported model; 7: 8 motors, 4 force inputs
+};
+
+/// The true state of the emulated grip.
+struct GripSnapshot {
+  double time = 0.0;  // emulated time [s]
+  Pose pose;
+  Vec3 velocity = Vec3::Zero();                  // [m/s]
+  Vec3 angular_velocity = Vec3::Zero();          // [rad/s]
+  StringVector tensions = StringVector::Zero();  // tensions the strings pull with [N]
+  StringVector lengths = StringVector::Zero();   // true string lengths [m]
+  Wrench strings;  // the strings' wrench on the grip (about its centre)
+  Wrench hand;     // the hand's wrench on the grip
+  bool holding = false;
+  uint64_t current_commands = 0;  // "current" commands received
+  uint64_t enumerations = 0;      // board-info requests answered
+  uint64_t protocol_errors = 0;   // bytes that were no known command
+  int64_t last_command_ns = 0;    // CLOCK_MONOTONIC when the last current command arrived [ns]
+  std::array<int16_t, kSpidarStrings> last_command{};  // its values [digits]
+};
+
+/// Runs its own thread from Start() to Stop()/destruction. Thread-safe API.
+class SpidarEmulator {
+ public:
+  /// `config` describes the emulated hardware (geometry, encoders, amplifiers); the driver
+  /// normally reads the same file. Strings must be driven by a UART board in the emulator, even
+  /// if the config names another controller.
+  static Result<std::unique_ptr<SpidarEmulator>> Start(const SpidarConfig& config,
+                                                       const EmulatorOptions& options = {});
+  ~SpidarEmulator();
+  SpidarEmulator(const SpidarEmulator&) = delete;
+  SpidarEmulator& operator=(const SpidarEmulator&) = delete;
+
+  /// The slave side of the pseudo-terminal: give this to the driver as its serial port.
+  const std::string& pty_path() const { return pty_path_; }
+
+  /// The hand holds the grip, pulling it towards `target` through the hand spring.
+  void HoldHand(const Pose& target);
+  /// The hand follows `script(t)` (t: emulated time [s]) until another hand call.
+  void ScriptHand(std::function<Pose(double)> script);
+  /// The hand lets go: only strings, gravity and damping act.
+  void ReleaseHand();
+  /// An extra wrench the hand applies to the grip (a push), in addition to the spring.
+  void SetHandWrench(const Wrench& wrench);
+
+  GripSnapshot Snapshot() const;
+  /// Stops the thread; the pty closes. Idempotent.
+  void Stop();
+
+ private:
+  SpidarEmulator(const SpidarConfig& config, const EmulatorOptions& options);
+  void Run();
+  void OnByte(uint8_t byte);
+  void ApplyCurrentCommand();
+  void Step(double h);
+  void Advance(double seconds);
+  void SendReply(std::span<const uint8_t> bytes);
+  void Encoders(uart::SensorReply* reply) const;
+
+  const SpidarConfig config_;
+  const EmulatorOptions options_;
+  uart::BoardInfo info_;
+  int master_fd_ = -1;
+  int slave_fd_ = -1;  // kept open so the master survives the driver closing and reopening
+  std::string pty_path_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+
+  mutable std::mutex mutex_;  // guards everything below against the API threads
+  GripSnapshot state_;
+  double inertia_ = 0.0;
+  Pose hand_target_;
+  std::function<Pose(double)> hand_script_;
+  Wrench hand_wrench_;
+  StringVector power_on_length_ = StringVector::Zero();
+  StringVector last_length_ = StringVector::Zero();
+  int64_t last_advance_ns_ = 0;
+  double last_advance_s_ = 0.0;  // length of the last Advance() [s]
+
+  // Parser state (emulator thread only).
+  uart::Command pending_ = uart::Command::kNone;
+  int pending_board_ = 0;
+  size_t need_ = 0;
+  std::array<uint8_t, uart::kMaxFrameSize> frame_{};
+  size_t have_ = 0;
+};
+
+}  // namespace rheo::drivers
