@@ -53,9 +53,11 @@ struct RendererConfig {
   double static_friction = 0.0;     ///< static friction coefficient, [0, 2]
   double dynamic_friction = 0.0;    ///< dynamic friction coefficient, [0, static_friction]
   double max_step = 2e-3;           ///< largest proxy displacement per tick [m], (0, 0.1]
-  double max_surface_speed = 1.0;   ///< bound on surface vertex speed, used to size the search
+  double max_surface_speed = 0.5;   ///< bound on surface vertex speed, used to size the search
                                     ///< margin of the incrementally re-binned grid [m/s], [0, 100]
-  int32_t rebin_faces_per_tick = 4096;  ///< faces re-binned per tick, round robin, [1, 1e8]
+  /// Faces re-binned per tick, round robin, [1, 1e8]. The search margin is max_surface_speed x
+  /// (faces / rebin_faces_per_tick) ticks: raise this for large, fast-moving surfaces.
+  int32_t rebin_faces_per_tick = 1024;
   double cell_size = 0.0;  ///< grid cell edge [m]; 0 picks one from the surface, else (0, 1]
 
   /// Checks every field; the error names the field, its value and its range.
@@ -159,10 +161,11 @@ class Renderer {
   bool Inside(std::span<const Vec3> x, const Vec3& p, int32_t closest) const;
   Vec3 FaceNormal(std::span<const Vec3> x, int32_t f) const;
   Vec3 PseudoNormal(std::span<const Vec3> x, const Plane& pl) const;
-  bool Depenetrate(std::span<const Vec3> x, Vec3& p);
+  bool Depenetrate(std::span<const Vec3> x, Vec3& p, double keep);
   int32_t Touching(std::array<internal::HalfSpace, kMaxContactFaces>& h, double gap_limit,
                    std::array<int32_t, kMaxContactFaces>* which, int32_t* nwhich) const;
-  Vec3 MoveProxy(std::span<const Vec3> x, const Vec3& from, const Vec3& target);
+  Vec3 MoveProxy(std::span<const Vec3> x, const Vec3& from, const Vec3& target, const Vec3& device,
+                 bool* touched);
   void DistributeReaction(std::span<const Vec3> x, const Vec3& object_force);
 
   // Per-tick scratch, sized at Create.

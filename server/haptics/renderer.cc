@@ -17,12 +17,14 @@ using internal::ClosestPointOnTriangle;
 using internal::Feature;
 using internal::HalfSpace;
 
-constexpr double kDepthTol = 1e-10;  // penetration tolerated before pushing the proxy out [m]
-constexpr double kTouch = 1e-8;      // gap below which a face touches the proxy [m]
-constexpr double kProjTol = 1e-12;   // feasibility tolerance of the projection [m]
-constexpr double kMinMove = 1e-12;   // displacement treated as no motion [m]
+constexpr double kDepthTol = 1e-10;   // penetration tolerated before pushing the proxy out [m]
+constexpr double kTouch = 1e-8;       // gap below which a face touches the proxy [m]
+constexpr double kProjTol = 1e-12;    // feasibility tolerance of the projection [m]
+constexpr double kMinMove = 1e-12;    // displacement treated as no motion [m]
+constexpr double kSettle = 0.1;       // final approach to the surface, in tool radii
+constexpr double kRelinearise = 0.5;  // longest step on one linearisation, in tool radii
 constexpr int kMaxDepenetration = 16;
-constexpr int kMaxMoves = 8;
+constexpr int kMaxMoves = 24;
 
 std::string Num(double v) {
   char buf[32];
@@ -174,7 +176,7 @@ Result<Renderer> Renderer::Create(const RendererConfig& config,
   r.proxy_ = tool;
   r.candidates_.resize(m);
   for (int32_t f = 0; f < m; ++f) r.candidates_[f] = f;
-  if (!r.Depenetrate(positions, r.proxy_))
+  if (!r.Depenetrate(positions, r.proxy_, std::numeric_limits<double>::infinity()))
     return InvalidArgument("cannot place the proxy outside the surface near the tool");
   r.candidates_.clear();
   return r;
@@ -256,9 +258,8 @@ bool Renderer::Inside(std::span<const Vec3> x, const Vec3& p, int32_t closest) c
   return (p - pl.point).dot(PseudoNormal(x, pl)) < 0.0;
 }
 
-bool Renderer::Depenetrate(std::span<const Vec3> x, Vec3& p) {
+bool Renderer::Depenetrate(std::span<const Vec3> x, Vec3& p, double keep) {
   const double r = config_.tool_radius;
-  const double keep = std::numeric_limits<double>::infinity();
   for (int it = 0; it <= kMaxDepenetration; ++it) {
     const int32_t closest = Evaluate(x, p, keep);
     if (closest < 0) return true;
@@ -286,19 +287,38 @@ bool Renderer::Depenetrate(std::span<const Vec3> x, Vec3& p) {
 
 int32_t Renderer::Touching(std::array<HalfSpace, kMaxContactFaces>& h, double gap_limit,
                            std::array<int32_t, kMaxContactFaces>* which, int32_t* nwhich) const {
-  // Half-spaces for the projection: the kMaxContactFaces nearest distinct planes, touching or
-  // (face interiors) within gap_limit: a proxy on a vertex touches every face around it with one
-  // plane, and face planes that the motion may reach make the projection land in concave creases
-  // at once. `which` lists the faces actually touching (gap <= kTouch), nearest first.
+  // Half-spaces for the projection: the touching planes (a proxy on a vertex touches every face
+  // around it with one plane), then the planes of nearby faces that rise above a touching plane
+  // (a concave crease the motion will reach: the projection lands in it at once instead of
+  // bouncing between its sides). Planes of faces that fall away (convex) are left out: they
+  // would hold the proxy above a rounded edge. `which` lists the touching faces, nearest first.
   std::array<double, kMaxContactFaces> hgap;
   int32_t nh = 0, nw = 0;
+  auto add = [&](const Plane& pl) {
+    for (int32_t j = 0; j < nh; ++j) {
+      if (h[j].n.dot(pl.n) > 1.0 - 1e-9) {
+        h[j].c = std::max(h[j].c, pl.c);
+        hgap[j] = std::min(hgap[j], pl.gap);
+        return;
+      }
+    }
+    if (nh < kMaxContactFaces) {
+      h[nh] = {pl.n, pl.c};
+      hgap[nh++] = pl.gap;
+      return;
+    }
+    int32_t far = 0;
+    for (int32_t j = 1; j < nh; ++j)
+      if (hgap[j] > hgap[far]) far = j;
+    if (pl.gap < hgap[far]) {
+      h[far] = {pl.n, pl.c};
+      hgap[far] = pl.gap;
+    }
+  };
   for (int32_t i = 0; i < static_cast<int32_t>(planes_.size()); ++i) {
     const Plane& pl = planes_[i];
-    // A face's own plane bounds the free space exactly; the planes of edges and vertices are
-    // tangent only where they touch and would stop a slide early.
-    if (pl.gap > (pl.feature == static_cast<uint8_t>(Feature::kFace) ? gap_limit : kTouch))
-      continue;
-    if (which != nullptr && pl.gap <= kTouch) {
+    if (pl.gap > kTouch) continue;
+    if (which != nullptr) {
       if (nw < kMaxContactFaces) {
         (*which)[nw++] = i;
       } else {
@@ -308,27 +328,19 @@ int32_t Renderer::Touching(std::array<HalfSpace, kMaxContactFaces>& h, double ga
         if (pl.gap < planes_[(*which)[far]].gap) (*which)[far] = i;
       }
     }
-    bool merged = false;
-    for (int32_t j = 0; j < nh; ++j) {
-      if (h[j].n.dot(pl.n) > 1.0 - 1e-9) {
-        h[j].c = std::max(h[j].c, pl.c);
-        hgap[j] = std::min(hgap[j], pl.gap);
-        merged = true;
-        break;
+    add(pl);
+  }
+  const int32_t touching = nh;
+  if (touching > 0 && gap_limit > kTouch) {
+    for (const Plane& pl : planes_) {
+      if (pl.gap <= kTouch || pl.gap > gap_limit) continue;
+      if (pl.feature != static_cast<uint8_t>(Feature::kFace)) continue;
+      bool concave = false;
+      for (int32_t j = 0; j < touching && !concave; ++j) {
+        // Above touching plane j by more than the proxy's own clearance: the face rises.
+        concave = h[j].n.dot(pl.point) + config_.tool_radius > h[j].c + 1e-9;
       }
-    }
-    if (merged) continue;
-    if (nh < kMaxContactFaces) {
-      h[nh] = {pl.n, pl.c};
-      hgap[nh++] = pl.gap;
-    } else {
-      int32_t far = 0;
-      for (int32_t j = 1; j < nh; ++j)
-        if (hgap[j] > hgap[far]) far = j;
-      if (pl.gap < hgap[far]) {
-        h[far] = {pl.n, pl.c};
-        hgap[far] = pl.gap;
-      }
+      if (concave) add(pl);
     }
   }
   if (which != nullptr) {
@@ -339,23 +351,28 @@ int32_t Renderer::Touching(std::array<HalfSpace, kMaxContactFaces>& h, double ga
   return nh;
 }
 
-Vec3 Renderer::MoveProxy(std::span<const Vec3> x, const Vec3& from, const Vec3& target) {
+Vec3 Renderer::MoveProxy(std::span<const Vec3> x, const Vec3& from, const Vec3& target,
+                         const Vec3& device, bool* touched) {
   // Constraint-based god-object step: project the target onto the touching half-spaces, then
   // advance towards it as far as every near face's half-space allows. The half-spaces support
   // the convex sets face + ball, so every point reached is at least tool_radius from each face.
+  const double keep = kSettle * config_.tool_radius;
   Vec3 p = from;
   double left = config_.max_step;
   std::array<HalfSpace, kMaxContactFaces> h;
-  for (int it = 0; it < kMaxMoves && left > kMinMove; ++it) {
-    const int32_t nh = Touching(h, left, nullptr, nullptr);
-    Vec3 y;
-    if (!internal::ProjectOntoHalfSpaces(target, std::span(h.data(), nh), kProjTol, y)) break;
-    Vec3 d = y - p;
+  auto touching = [&] {
+    bool any = false;
+    for (const Plane& pl : planes_) any = any || pl.gap <= kTouch;
+    return any;
+  };
+  bool held = false;  // the last advance was held back by the surface
+  auto advance = [&](Vec3 d, double& budget) {
+    // Re-linearise at least every half radius so that slides follow a curved surface.
     double len = d.norm();
-    if (len < kMinMove) break;
-    if (len > left) {
-      d *= left / len;
-      len = left;
+    const double cap = std::min(budget, kRelinearise * config_.tool_radius);
+    if (len > cap) {
+      d *= cap / len;
+      len = cap;
     }
     double s = 1.0;
     for (const Plane& pl : planes_) {
@@ -363,10 +380,27 @@ Vec3 Renderer::MoveProxy(std::span<const Vec3> x, const Vec3& from, const Vec3& 
       if (nd < -1e-11) s = std::min(s, std::max(pl.gap, 0.0) / -nd);
     }
     p += s * d;
-    left -= s * len;
-    Evaluate(x, p, left + kTouch);
-    if (s * len < kMinMove) break;
+    budget -= s * len;
+    Evaluate(x, p, std::max(left, keep) + kTouch);
+    held = held || s < 1.0;
+    return s * len;
+  };
+  for (int it = 0; it < kMaxMoves && left > kMinMove; ++it) {
+    const int32_t nh = Touching(h, left, nullptr, nullptr);
+    Vec3 y;
+    if (!internal::ProjectOntoHalfSpaces(target, std::span(h.data(), nh), kProjTol, y)) break;
+    if ((y - p).norm() < kMinMove) break;
+    held = (y - target).norm() > kMinMove;
+    if (advance(y - p, left) < kMinMove) break;
   }
+  // Settle: a slide along linearised planes of a curved surface (or one cut short by max_step)
+  // can end just above it; close that gap along the line to the device, by at most `keep`.
+  double settle = keep;
+  for (int it = 0; it < 4 && settle > kMinMove; ++it) {
+    if (touching() || (device - p).norm() < kMinMove) break;
+    if (advance(device - p, settle) < kMinMove) break;
+  }
+  *touched = held || touching();
   return p;
 }
 
@@ -420,14 +454,24 @@ Result<ContactOutput> Renderer::Update(const DeviceState& device, std::span<cons
   // 2. Faces that the proxy may reach this tick, from the grid, widened by how far any face can
   //    have moved since it was binned.
   const double stale = config_.max_surface_speed * grid_.staleness(time_);
-  const double reach = 2.0 * r + config_.max_step + grid_.reach_bound() + stale;
+  const double reach = (2.0 + kSettle) * r + config_.max_step + grid_.reach_bound() + stale;
   candidates_.clear();
   grid_.Query(p, reach, candidates_);
   const int32_t queried = static_cast<int32_t>(candidates_.size());
 
-  // 3. Push the proxy out of the surface if the surface moved into it.
-  Depenetrate(x, p);
-  Evaluate(x, p, config_.max_step + kTouch);
+  // 3. Push the proxy out of the surface if the surface moved into it. The query covers a push
+  //    of up to tool_radius; after a larger one (the surface swept over the proxy), search again
+  //    around the pushed proxy.
+  const double all = std::numeric_limits<double>::infinity();
+  Vec3 center = p;
+  Depenetrate(x, p, all);
+  for (int k = 0; k < 2 && (p - center).norm() > r; ++k) {
+    center = p;
+    candidates_.clear();
+    grid_.Query(p, reach, candidates_);
+    Depenetrate(x, p, all);
+  }
+  Evaluate(x, p, config_.max_step + kSettle * r + kTouch);
 
   // 4. Friction cone (Melder & Harwin): the proxy sticks while the device stays within the cone
   //    around the frictionless proxy; otherwise it slides to the cone's edge.
@@ -454,6 +498,9 @@ Result<ContactOutput> Renderer::Update(const DeviceState& device, std::span<cons
           stuck_ = false;
           sliding = true;
         }
+        // Aim a little below the linearised planes, towards the device: where the true surface
+        // curves away from them (edges, vertices) the proxy then still lands on it.
+        target += (g - free_proxy) * (std::min(depth, 0.1 * r) / depth);
       } else {
         stuck_ = false;
       }
@@ -463,24 +510,33 @@ Result<ContactOutput> Renderer::Update(const DeviceState& device, std::span<cons
   }
 
   // 5. Move the proxy towards the target under the non-penetration constraints.
-  p = MoveProxy(x, p, target);
+  bool touched = false;
+  p = MoveProxy(x, p, target, g, &touched);
 
-  // 6. Contact set at the final proxy.
+  // 6. Contact set at the final proxy. A proxy that touched the surface this tick but ran out of
+  //    max_step while sliding may end just above it: it stays in contact, its reaction on the
+  //    last contact faces.
   std::array<HalfSpace, kMaxContactFaces> h;
   std::array<int32_t, kMaxContactFaces> which;
   int32_t touching = 0;
   Touching(h, kTouch, &which, &touching);
-  const bool in_contact = touching > 0 && (g - p).norm() > kMinMove;
+  const bool held = (g - p).norm() > kMinMove;
+  // The friction cone or the touching planes moved the target off the device: the surface
+  // holds the proxy back even if the slide ended above it.
+  const bool aimed = (target - g).norm() > kMinMove;
+  const bool in_contact = held && (touching > 0 || ((touched || aimed) && anchor_count_ > 0));
   Vec3 normal = Vec3::Zero();
-  if (in_contact) {
+  if (in_contact && touching > 0) {
     for (int32_t i = 0; i < touching; ++i) normal += planes_[which[i]].n;
     normal.normalize();
     anchor_count_ = touching;
     for (int32_t i = 0; i < touching; ++i)
       anchors_[i] = {planes_[which[i]].face, planes_[which[i]].bary};
     anchor_offset_ = p - planes_[which[0]].point;
+  } else if (in_contact) {
+    normal = (p - g).normalized();
   }
-  anchored_ = in_contact;
+  anchored_ = in_contact && touching > 0;
 
   // 7. Virtual coupling, unilateral, then the device's force and force-rate limits.
   Vec3 force = Vec3::Zero();

@@ -111,7 +111,10 @@ TEST_P(RandomMotion, ProxyStaysOutsideAndForcesStayLimitedAndBalanced) {
     last_force = f;
     contact += out.in_contact;
     sliding += out.sliding;
-    deep += WindingNumber(s.triangles, x, device) > 0.5;
+    // A device inside the object always has the proxy resting on the surface, pushing back.
+    const bool inside = WindingNumber(s.triangles, x, device) > 0.5;
+    ASSERT_TRUE(!inside || (out.in_contact && f.dot(out.contact_normal) >= 0.0)) << "tick " << i;
+    deep += inside;
     max_candidates = std::max<double>(max_candidates, out.candidate_faces);
   }
   // The run exercised what it claims to.
