@@ -211,6 +211,7 @@ bool SimObject::SetNodeState(int32_t node, const Vec3& position, const Vec3& vel
 
 void SimObject::Translate(const Vec3& offset) {
   for (auto& x : state_.x) x += offset;
+  placement_ += offset;
   for (auto& v : state_.v) v.setZero();
   SaveGood();
   Wake();
@@ -218,6 +219,7 @@ void SimObject::Translate(const Vec3& offset) {
 
 void SimObject::Reset() {
   state_.x = model_.rest_positions;  // same size: no allocation
+  placement_.setZero();
   for (auto& v : state_.v) v.setZero();
   for (auto& a : state_.a) a = params_.voigt_ratio;
   for (auto& t : state_.tension) t = 0.0;
@@ -333,7 +335,7 @@ Diagnostics SimObject::ComputeDiagnostics() const {
     d.kinetic_energy += 0.5 * m.mass[i] * s.v[i].squaredNorm();
     d.gravity_energy += m.mass[i] * g * s.x[i].y();
     d.lowest_point = std::min(d.lowest_point, s.x[i].y());
-    max_disp2 = std::max(max_disp2, (s.x[i] - m.rest_positions[i]).squaredNorm());
+    max_disp2 = std::max(max_disp2, (s.x[i] - m.rest_positions[i] - placement_).squaredNorm());
     max_speed2 = std::max(max_speed2, s.v[i].squaredNorm());
     d.floor_force += s.floor_reaction[i];
     d.external_force += s.f_ext[i];

@@ -121,7 +121,8 @@ class SimObject {
   Parameters params_;
   Integrator integrator_;
   State state_;
-  double h_stable_ = 0.0;  // explicit stability bound on the substep [s]
+  double h_stable_ = 0.0;          // explicit stability bound on the substep [s]
+  Vec3 placement_ = Vec3::Zero();  // sum of Translate() offsets since build or Reset [m]
   double rest_time_ = 0.0;
   bool sleeping_ = false;
   int32_t steps_since_good_ = 0;

@@ -1,0 +1,404 @@
+// sim_bench: measured, not asserted.
+//   sim_bench speed [max_tets]       median wall time of one 1 ms tick vs mesh size
+//   sim_bench precision [svg_path]   work-precision: CPU time per simulated second vs error
+//   sim_bench bullet                 btSoftBody on the same tets and dt, vs the same reference
+// One thread throughout (the library has none).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "sim/primitives.h"
+#include "sim/sim.h"
+
+#ifdef RHEO_HAVE_BULLET
+#include <BulletSoftBody/btSoftBodyHelpers.h>
+#include <BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h>
+#include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
+#include <btBulletDynamicsCommon.h>
+#endif
+
+namespace {
+
+using rheo::TetMesh;
+using rheo::Vec3;
+using namespace rheo::sim;
+
+double CpuSeconds() {
+  timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+double Percentile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
+}
+
+// A 10 cm x 6 cm x 8 cm box with about `tets` tetrahedra.
+TetMesh BoxWithTets(int tets) {
+  const double cells = tets / 6.0;
+  const double s = std::cbrt(cells / (1.0 * 0.6 * 0.8));
+  const int nx = std::max(1, static_cast<int>(std::lround(s)));
+  const int ny = std::max(1, static_cast<int>(std::lround(0.6 * s)));
+  const int nz = std::max(1, static_cast<int>(std::lround(0.8 * s)));
+  return *MakeBoxTetMesh(nx, ny, nz, Vec3(0.1, 0.06, 0.08));
+}
+
+// ---------------------------------------------------------------------------------------------
+int Speed(int max_tets) {
+  std::printf("# speed: one 1 ms tick, object settling on the floor (awake), one core\n");
+  std::printf("%8s %7s %8s %-17s %5s %9s %9s %9s %10s\n", "tets", "nodes", "edges", "integrator",
+              "subst", "median_us", "p90_us", "us/ktet", "CG it/tick");
+  for (int target : {100, 1000, 5000, 20000, 100000}) {
+    if (target > max_tets) break;
+    const TetMesh mesh = BoxWithTets(target);
+    for (Integrator integ : {Integrator::kSymplecticEuler, Integrator::kImplicitEuler}) {
+      Parameters p = FindPreset("organ")->params;
+      p.sleep_time = 0.0;
+      auto obj = SimObject::Create(mesh, p, integ);
+      if (!obj.ok()) return 2;
+      SimObject& s = **obj;
+      s.Translate(Vec3(0, 0.005, 0));
+      const int ticks = target >= 100000 ? 15 : target >= 20000 ? 40 : 200;
+      for (int k = 0; k < 5; ++k) s.Step(1e-3);
+      std::vector<double> us;
+      int64_t sub = 0, it = 0;
+      for (int k = 0; k < ticks; ++k) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const StepResult r = s.Step(1e-3);
+        us.push_back(
+            std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0)
+                .count());
+        sub += r.substeps;
+        it += r.solver_iterations;
+      }
+      const double med = Median(us);
+      std::printf("%8zu %7d %8zu %-17s %5.1f %9.1f %9.1f %9.1f %10.1f\n", mesh.tets.size(),
+                  s.model().num_nodes, s.model().edges.size(), IntegratorName(integ),
+                  double(sub) / ticks, med, Percentile(us, 0.9), med / (mesh.tets.size() / 1e3),
+                  double(it) / ticks);
+    }
+  }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scenes for work-precision: the same mesh and parameters, 0.5 s.
+struct Scene {
+  const char* name;
+  TetMesh mesh;
+  Parameters params;
+  double drop = 0.0;         // lowest point above the floor at t = 0 [m]
+  double press_force = 0.0;  // total downward force on the top nodes, ramped over 0.1 s [N]
+};
+
+std::vector<Scene> Scenes() {
+  std::vector<Scene> out;
+  const TetMesh blob = *MakeEllipsoidTetMesh(4, Vec3(0.05, 0.035, 0.04), Vec3(0, 0.035, 0));
+  Parameters p = FindPreset("organ")->params;
+  p.sleep_time = 0.0;
+  out.push_back({"drop", blob, p, 0.05, 0.0});
+  out.push_back({"press", blob, p, 0.0, 3.0});
+  return out;
+}
+
+struct RunResult {
+  std::vector<Vec3> x;
+  double cpu = 0.0;  // [s]
+  int64_t substeps = 0;
+  int64_t restores = 0;
+};
+
+RunResult RunScene(const Scene& sc, Integrator integ, double dt, double t_end,
+                   double cg_tol = -1.0) {
+  Parameters p = sc.params;
+  if (cg_tol > 0) p.cg_tolerance = cg_tol;
+  p.max_substeps = 10000;
+  auto obj = SimObject::Create(sc.mesh, p, integ);
+  SimObject& s = **obj;
+  s.Translate(Vec3(0, sc.drop, 0));
+  std::vector<int32_t> top;
+  double y_max = -1e30;
+  for (const Vec3& x : s.positions()) y_max = std::max(y_max, x.y());
+  for (int32_t i = 0; i < s.model().num_nodes; ++i) {
+    if (s.positions()[i].y() > y_max - 0.01) top.push_back(i);
+  }
+  RunResult r;
+  const int64_t ticks = std::llround(t_end / dt);
+  const double t0 = CpuSeconds();
+  for (int64_t k = 0; k < ticks; ++k) {
+    if (sc.press_force > 0) {
+      const double ramp = std::min(1.0, (k * dt) / 0.1);
+      for (int32_t i : top) s.SetExternalForce(i, Vec3(0, -ramp * sc.press_force / top.size(), 0));
+    }
+    const StepResult st = s.Step(dt);
+    r.substeps += st.substeps;
+    r.restores += st.restored;
+  }
+  r.cpu = CpuSeconds() - t0;
+  r.x.assign(s.positions().begin(), s.positions().end());
+  return r;
+}
+
+double RmsError(const std::vector<Vec3>& a, const std::vector<Vec3>& b, double size) {
+  double sum = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) sum += (a[i] - b[i]).squaredNorm();
+  return std::sqrt(sum / a.size()) / size;
+}
+
+struct Point {
+  std::string scene, integrator;
+  double dt, error, cpu_per_s;
+};
+
+void WriteSvg(const std::vector<Point>& pts, const std::string& path) {
+  // Log-log: x = error, y = CPU seconds per simulated second.
+  const double W = 720, H = 480, L = 80, R = 200, T = 30, B = 60;
+  double ex0 = 1e-6, ex1 = 1.0, ey0 = 1e-3, ey1 = 100.0;
+  auto X = [&](double e) {
+    return L + (std::log10(std::max(e, ex0)) - std::log10(ex0)) /
+                   (std::log10(ex1) - std::log10(ex0)) * (W - L - R);
+  };
+  auto Y = [&](double c) {
+    return H - B -
+           (std::log10(std::max(c, ey0)) - std::log10(ey0)) / (std::log10(ey1) - std::log10(ey0)) *
+               (H - T - B);
+  };
+  std::ofstream f(path);
+  f << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H
+    << "' font-family='sans-serif' font-size='12'>\n<rect width='100%' height='100%' "
+       "fill='white'/>\n";
+  for (int d = -6; d <= 0; ++d) {
+    const double x = X(std::pow(10.0, d));
+    f << "<line x1='" << x << "' y1='" << T << "' x2='" << x << "' y2='" << H - B
+      << "' stroke='#ddd'/><text x='" << x - 12 << "' y='" << H - B + 18 << "'>1e" << d
+      << "</text>\n";
+  }
+  for (int d = -3; d <= 2; ++d) {
+    const double y = Y(std::pow(10.0, d));
+    f << "<line x1='" << L << "' y1='" << y << "' x2='" << W - R << "' y2='" << y
+      << "' stroke='#ddd'/><text x='" << L - 40 << "' y='" << y + 4 << "'>1e" << d << "</text>\n";
+  }
+  // Real-time budget: 1 s of CPU per simulated second; target error 1 %.
+  f << "<line x1='" << L << "' y1='" << Y(1.0) << "' x2='" << W - R << "' y2='" << Y(1.0)
+    << "' stroke='red' stroke-dasharray='4'/>\n";
+  f << "<line x1='" << X(0.01) << "' y1='" << T << "' x2='" << X(0.01) << "' y2='" << H - B
+    << "' stroke='red' stroke-dasharray='4'/>\n";
+  f << "<text x='" << (L + W - R) / 2 - 100 << "' y='" << H - 20
+    << "'>error: RMS node distance to reference at 0.5 s / size</text>\n";
+  f << "<text x='15' y='" << T + 10 << "'>CPU s per simulated s</text>\n";
+  const char* colors[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
+  std::vector<std::string> series;
+  for (const Point& p : pts) {
+    const std::string key = p.scene + " " + p.integrator;
+    if (std::find(series.begin(), series.end(), key) == series.end()) series.push_back(key);
+  }
+  for (size_t si = 0; si < series.size(); ++si) {
+    std::string poly;
+    for (const Point& p : pts) {
+      if (p.scene + " " + p.integrator != series[si]) continue;
+      poly += std::to_string(X(p.error)) + "," + std::to_string(Y(p.cpu_per_s)) + " ";
+      f << "<circle cx='" << X(p.error) << "' cy='" << Y(p.cpu_per_s) << "' r='3' fill='"
+        << colors[si % 6] << "'/>\n";
+    }
+    f << "<polyline points='" << poly << "' fill='none' stroke='" << colors[si % 6] << "'/>\n";
+    f << "<text x='" << W - R + 10 << "' y='" << T + 20 + 18 * si << "' fill='" << colors[si % 6]
+      << "'>" << series[si] << "</text>\n";
+  }
+  f << "</svg>\n";
+}
+
+int Precision(const std::string& svg) {
+  const double t_end = 0.5;
+  std::vector<Point> pts;
+  std::printf(
+      "# work-precision: error = RMS(x - x_ref)/size at t = 0.5 s; reference = "
+      "symplectic Euler, tick 1e-5 s\n");
+  std::printf("%-6s %-17s %9s %9s %12s %10s %8s\n", "scene", "integrator", "dt_s", "substep_s",
+              "error", "cpu_s/s", "restores");
+  for (const Scene& sc : Scenes()) {
+    const RunResult ref = RunScene(sc, Integrator::kSymplecticEuler, 1e-5, t_end);
+    const double size =
+        (**SimObject::Create(sc.mesh, sc.params, Integrator::kSymplecticEuler)).model().size;
+    for (Integrator integ : {Integrator::kSymplecticEuler, Integrator::kImplicitEuler}) {
+      for (double dt : {4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4}) {
+        const RunResult r = RunScene(sc, integ, dt, t_end);
+        const double err = RmsError(r.x, ref.x, size);
+        const double ticks = std::llround(t_end / dt);
+        pts.push_back({sc.name, IntegratorName(integ), dt, err, r.cpu / t_end});
+        std::printf("%-6s %-17s %9.2e %9.2e %12.3e %10.4f %8lld\n", sc.name, IntegratorName(integ),
+                    dt, dt * ticks / r.substeps, err, r.cpu / t_end,
+                    static_cast<long long>(r.restores));
+      }
+    }
+  }
+  if (!svg.empty()) {
+    WriteSvg(pts, svg);
+    std::printf("# plot written to %s\n", svg.c_str());
+  }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+#ifdef RHEO_HAVE_BULLET
+// btSoftBody from the same tetrahedra (TetGen text, as Bullet reads it), same dt, same floor.
+struct BulletRun {
+  std::vector<Vec3> x;
+  double cpu = 0.0;
+  std::vector<double> tick_us;
+};
+
+BulletRun RunBullet(const Scene& sc, double dt, double t_end, double stiffness) {
+  std::ostringstream node, ele;
+  node << sc.mesh.positions.size() << " 3 0 0\n";
+  for (size_t i = 0; i < sc.mesh.positions.size(); ++i) {
+    const Vec3& p = sc.mesh.positions[i];
+    node << i << " " << p.x() << " " << p.y() + sc.drop << " " << p.z() << "\n";
+  }
+  ele << sc.mesh.tets.size() << " 4 0\n";
+  for (size_t i = 0; i < sc.mesh.tets.size(); ++i) {
+    const auto& t = sc.mesh.tets[i];
+    ele << i << " " << t[0] << " " << t[1] << " " << t[2] << " " << t[3] << "\n";
+  }
+  btSoftBodyRigidBodyCollisionConfiguration config;
+  btCollisionDispatcher dispatcher(&config);
+  btDbvtBroadphase broadphase;
+  btSequentialImpulseConstraintSolver solver;
+  btSoftRigidDynamicsWorld world(&dispatcher, &broadphase, &solver, &config);
+  world.setGravity(btVector3(0, -sc.params.gravity, 0));
+  btSoftBodyWorldInfo& info = world.getWorldInfo();
+  info.m_gravity = btVector3(0, -sc.params.gravity, 0);
+  info.m_broadphase = &broadphase;
+  info.m_dispatcher = &dispatcher;
+  info.air_density = 0;
+  info.water_density = 0;
+  info.m_sparsesdf.Initialize();
+  btStaticPlaneShape plane(btVector3(0, 1, 0), 0);
+  btDefaultMotionState ms;
+  btRigidBody ground(btRigidBody::btRigidBodyConstructionInfo(0, &ms, &plane));
+  ground.setFriction(sc.params.friction);
+  world.addRigidBody(&ground);
+  const std::string ele_s = ele.str(), node_s = node.str();
+  btSoftBody* sb = btSoftBodyHelpers::CreateFromTetGenData(info, ele_s.c_str(), nullptr,
+                                                           node_s.c_str(), false, true, true);
+  double mass = 0.0;
+  for (const auto& t : sc.mesh.tets) {
+    const Vec3& p0 = sc.mesh.positions[t[0]];
+    mass += std::abs((sc.mesh.positions[t[1]] - p0)
+                         .dot((sc.mesh.positions[t[2]] - p0).cross(sc.mesh.positions[t[3]] - p0))) /
+            6.0 * sc.params.density;
+  }
+  sb->m_materials[0]->m_kLST = stiffness;
+  sb->m_cfg.piterations = 4;
+  sb->m_cfg.kDF = sc.params.friction;
+  sb->m_cfg.kDP = 0.01;
+  sb->m_cfg.collisions = btSoftBody::fCollision::SDF_RS;
+  sb->setTotalMass(mass, false);  // no faces: by node, not by area
+  sb->generateBendingConstraints(2, sb->m_materials[0]);
+  world.addSoftBody(sb);
+  std::vector<int> top;
+  double y_max = -1e30;
+  for (int i = 0; i < sb->m_nodes.size(); ++i)
+    y_max = std::max<double>(y_max, sb->m_nodes[i].m_x.y());
+  for (int i = 0; i < sb->m_nodes.size(); ++i) {
+    if (sb->m_nodes[i].m_x.y() > y_max - 0.01) top.push_back(i);
+  }
+  BulletRun r;
+  const int64_t ticks = std::llround(t_end / dt);
+  const double c0 = CpuSeconds();
+  for (int64_t k = 0; k < ticks; ++k) {
+    if (sc.press_force > 0) {
+      const double ramp = std::min(1.0, (k * dt) / 0.1);
+      for (int i : top) sb->addForce(btVector3(0, -ramp * sc.press_force / top.size(), 0), i);
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    world.stepSimulation(dt, 0);
+    r.tick_us.push_back(
+        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+  }
+  r.cpu = CpuSeconds() - c0;
+  for (int i = 0; i < sb->m_nodes.size(); ++i) {
+    const btVector3& p = sb->m_nodes[i].m_x;
+    r.x.emplace_back(p.x(), p.y(), p.z());
+  }
+  world.removeSoftBody(sb);
+  world.removeRigidBody(&ground);
+  delete sb;
+  return r;
+}
+
+int Bullet() {
+  const double t_end = 0.5, dt = 1e-3;
+  std::printf(
+      "# Bullet btSoftBody (tetra links, same tets, same dt 1 ms, same floor) vs rheo_sim;"
+      " error vs the rheo_sim reference (tick 1e-5 s) at 0.5 s / size.\n"
+      "# Bullet's error includes the difference of material models, not only "
+      "integration error.\n");
+  std::printf("%-6s %6s %-26s %10s %12s %10s\n", "scene", "tets", "engine", "median_us", "error",
+              "ratio");
+  for (const Scene& sc : Scenes()) {
+    const RunResult ref = RunScene(sc, Integrator::kSymplecticEuler, 1e-5, t_end);
+    const double size =
+        (**SimObject::Create(sc.mesh, sc.params, Integrator::kSymplecticEuler)).model().size;
+    double rheo_med = 0.0;
+    for (Integrator integ : {Integrator::kSymplecticEuler, Integrator::kImplicitEuler}) {
+      // Median tick time measured separately from the error run.
+      Parameters p = sc.params;
+      auto obj = SimObject::Create(sc.mesh, p, integ);
+      SimObject& s = **obj;
+      s.Translate(Vec3(0, sc.drop, 0));
+      std::vector<double> us;
+      for (int k = 0; k < 500; ++k) {
+        const auto t0 = std::chrono::steady_clock::now();
+        s.Step(dt);
+        us.push_back(
+            std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0)
+                .count());
+      }
+      const RunResult r = RunScene(sc, integ, dt, t_end);
+      const double med = Median(us);
+      if (integ == Integrator::kSymplecticEuler) rheo_med = med;
+      std::printf("%-6s %6zu %-26s %10.1f %12.3e %10.2f\n", sc.name, sc.mesh.tets.size(),
+                  IntegratorName(integ), med, RmsError(r.x, ref.x, size), med / rheo_med);
+    }
+    for (double kl : {0.1, 0.5, 1.0}) {
+      const BulletRun b = RunBullet(sc, dt, t_end, kl);
+      char name[64];
+      std::snprintf(name, sizeof name, "bullet kLST=%.1f", kl);
+      std::printf("%-6s %6zu %-26s %10.1f %12.3e %10.2f\n", sc.name, sc.mesh.tets.size(), name,
+                  Median(b.tick_us), RmsError(b.x, ref.x, size), Median(b.tick_us) / rheo_med);
+    }
+  }
+  std::printf("# ratio = median tick time / rheo_sim symplectic-euler median tick time\n");
+  return 0;
+}
+#endif
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::string mode = argc > 1 ? argv[1] : "speed";
+  if (mode == "speed") return Speed(argc > 2 ? std::atoi(argv[2]) : 100000);
+  if (mode == "precision") return Precision(argc > 2 ? argv[2] : "sim_work_precision.svg");
+#ifdef RHEO_HAVE_BULLET
+  if (mode == "bullet") return Bullet();
+#else
+  if (mode == "bullet") {
+    std::fprintf(stderr, "sim_bench: built without Bullet (libbullet-dev)\n");
+    return 1;
+  }
+#endif
+  std::fprintf(stderr, "usage: sim_bench speed [max_tets] | precision [svg] | bullet\n");
+  return 1;
+}
