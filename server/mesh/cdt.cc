@@ -25,9 +25,17 @@ using CDT = CGAL::Constrained_Delaunay_triangulation_2<K, Tds, CGAL::Exact_predi
 
 Result<Cdt> TriangulateWithNeighbors(const std::vector<Vec2>& polygon) {
   CDT cdt;
-  std::vector<CDT::Vertex_handle> handles;
-  handles.reserve(polygon.size());
-  for (const Vec2& p : polygon) handles.push_back(cdt.insert(CDT::Point(p.x(), p.y())));
+  // Range insertion sorts spatially (O(n log n)); info carries the polygon index.
+  std::vector<std::pair<CDT::Point, int32_t>> input;
+  input.reserve(polygon.size());
+  for (size_t i = 0; i < polygon.size(); ++i)
+    input.emplace_back(CDT::Point(polygon[i].x(), polygon[i].y()), static_cast<int32_t>(i));
+  cdt.insert(input.begin(), input.end());
+  std::vector<CDT::Vertex_handle> handles(polygon.size());
+  for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v)
+    handles[v->info()] = v;
+  for (size_t i = 0; i < polygon.size(); ++i)  // duplicates of an earlier point
+    if (handles[i] == CDT::Vertex_handle()) handles[i] = cdt.insert(input[i].first);
   // Number vertices by first appearance along the polygon, so contour order is kept.
   for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v) v->info() = -1;
   Cdt out;

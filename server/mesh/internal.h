@@ -59,6 +59,9 @@ struct Mesh2 {
 };
 Result<Mesh2> QualityMesh(const std::vector<Vec2>& polygon, double size);
 
+/// The paper's cells: Teddy's triangles with spine-to-contour edges cut into rows <= spacing [m].
+Result<Mesh2> PaperMesh(const TeddyTriangulation& teddy, double row_spacing);
+
 struct ColumnLimits {
   int64_t max_vertices = 0;
   int64_t max_tets = 0;

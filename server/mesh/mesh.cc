@@ -71,7 +71,9 @@ Result<MeshResult> BuildSolid(const Polygon2& contour_px, const MeshOptions& opt
                              std::to_string(static_cast<int64_t>(tri_estimate / 2)) +
                              " vertices, over the limit max_vertices = " +
                              std::to_string(options.max_vertices) + "; raise the resolution");
-  auto mesh2 = internal::QualityMesh(r.contour, options.resolution);
+  auto mesh2 = options.division == Division::kPaper
+                   ? internal::PaperMesh(r.teddy, options.resolution)
+                   : internal::QualityMesh(r.contour, options.resolution);
   if (!mesh2.ok()) return mesh2.error();
 
   if (!st.Next("mesh2d", "inflate", 0.5)) return CancelledIn("inflate");

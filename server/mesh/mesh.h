@@ -79,6 +79,16 @@ struct StageTiming {
 /// ErrorCode::kCancelled). fraction in [0, 1] is the progress of the whole build.
 using ProgressFn = std::function<bool(std::string_view stage, double fraction)>;
 
+/// Which 2D cells carry the tetrahedral columns.
+enum class Division : uint8_t {
+  /// A quality Delaunay mesh of the outline (angles >= ~20 deg, edges <= resolution) lifted onto
+  /// the Teddy surface. Default: it meets the quality targets.
+  kQuality = 0,
+  /// The paper's cells: Teddy's final triangles cut into rows along the quarter ovals (figures
+  /// 10-14). Valid, but it inherits the skinny fan and sleeve triangles of Teddy.
+  kPaper = 1,
+};
+
 struct MeshOptions {
   /// Size of one contour unit (pixel) [m/px]. The default makes a 512 px drawing about 13 cm.
   double pixel_size = 2.5e-4;
@@ -86,6 +96,7 @@ struct MeshOptions {
   double thickness = 1.0;
   /// Target edge length of the mesh, horizontally and through the thickness [m].
   double resolution = 0.008;
+  Division division = Division::kQuality;
   /// Size limits; over a limit BuildSolid returns ErrorCode::kResourceExhausted naming it.
   int64_t max_contour_points = 100000;
   int64_t max_vertices = 2000000;

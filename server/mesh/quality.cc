@@ -52,12 +52,13 @@ QualityReport CheckTetMesh(const TetMesh& mesh) {
       }
 
   // Volumes, dihedral angles, radius-edge ratios.
-  std::vector<double> volumes, dihedrals, radius_edge;
+  std::vector<double> volumes, radius_edge;
+  std::vector<float> dihedrals;  // cosines
+  double max_cos = -1, min_cos = 1;
   volumes.reserve(mesh.tets.size());
   dihedrals.reserve(6 * mesh.tets.size());
   radius_edge.reserve(mesh.tets.size());
   constexpr int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
-  r.min_dihedral_deg = 180;
   for (const auto& t : mesh.tets) {
     const Vec3 a = P[t[1]] - P[t[0]], b = P[t[2]] - P[t[0]], c = P[t[3]] - P[t[0]];
     const double det = a.dot(b.cross(c));
@@ -81,11 +82,11 @@ QualityReport CheckTetMesh(const TetMesh& mesh) {
       int o[2], no = 0;
       for (int q = 0; q < 4; ++q)
         if (q != e[0] && q != e[1]) o[no++] = q;
+      // cos of the dihedral angle; angles follow from the cosines' order statistics.
       const double cosang = std::clamp(-n[o[0]].dot(n[o[1]]), -1.0, 1.0);
-      const double deg = std::acos(cosang) * 180.0 / std::numbers::pi;
-      dihedrals.push_back(deg);
-      r.min_dihedral_deg = std::min(r.min_dihedral_deg, deg);
-      r.max_dihedral_deg = std::max(r.max_dihedral_deg, deg);
+      dihedrals.push_back(static_cast<float>(cosang));
+      max_cos = std::max(max_cos, cosang);
+      min_cos = std::min(min_cos, cosang);
       min_edge2 = std::min(min_edge2, (P[t[e[0]]] - P[t[e[1]]]).squaredNorm());
     }
     const Vec3 cc = (a.squaredNorm() * b.cross(c) + b.squaredNorm() * c.cross(a) +
@@ -93,14 +94,22 @@ QualityReport CheckTetMesh(const TetMesh& mesh) {
                     (2.0 * det);
     radius_edge.push_back(cc.norm() / std::sqrt(min_edge2));
   }
-  if (mesh.tets.empty()) r.min_dihedral_deg = 0;
+  auto deg = [](double c) {
+    return std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / std::numbers::pi;
+  };
+  if (!dihedrals.empty()) {
+    r.min_dihedral_deg = deg(max_cos);
+    r.max_dihedral_deg = deg(min_cos);
+    auto mid = dihedrals.begin() + static_cast<long>(dihedrals.size() / 2);
+    std::nth_element(dihedrals.begin(), mid, dihedrals.end());
+    r.median_dihedral_deg = deg(*mid);
+  }
   if (!volumes.empty()) {
     r.min_volume = *std::min_element(volumes.begin(), volumes.end());
     std::vector<double> tmp = volumes;
     r.median_volume = Median(tmp);
     r.min_volume_ratio = r.median_volume > 0 ? r.min_volume / r.median_volume : 0;
   }
-  r.median_dihedral_deg = Median(dihedrals);
   if (!radius_edge.empty()) {
     r.max_radius_edge = *std::max_element(radius_edge.begin(), radius_edge.end());
     r.median_radius_edge = Median(radius_edge);

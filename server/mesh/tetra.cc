@@ -44,7 +44,13 @@ Result<Mesh2> QualityMesh(const std::vector<Vec2>& polygon, double size) {
   CDT cdt;
   std::vector<CDT::Vertex_handle> handles;
   handles.reserve(polygon.size());
-  for (const Vec2& p : polygon) handles.push_back(cdt.insert(CDT::Point(p.x(), p.y())));
+  std::vector<CDT::Point> pts;
+  pts.reserve(polygon.size());
+  for (const Vec2& p : polygon) pts.emplace_back(p.x(), p.y());
+  cdt.insert(pts.begin(), pts.end());  // spatially sorted, O(n log n)
+  // Re-inserting finds the existing vertex; the previous one is a good starting face.
+  for (const auto& p : pts)
+    handles.push_back(handles.empty() ? cdt.insert(p) : cdt.insert(p, handles.back()->face()));
   for (size_t i = 0; i < handles.size(); ++i) {
     auto a = handles[i], b = handles[(i + 1) % handles.size()];
     if (a != b) cdt.insert_constraint(a, b);

@@ -34,5 +34,19 @@ TEST(MeshProperty, ThousandRandomPolygons) {
   RecordProperty("worst_min_dihedral_deg", std::to_string(worst_dihedral));
 }
 
+TEST(MeshProperty, PaperDivisionOnRandomPolygons) {
+  MeshOptions opt;
+  opt.division = Division::kPaper;
+  for (int i = 0; i < 400; ++i) {
+    std::string family;
+    const Polygon2 poly = testing::PropertyPolygon(i, &family);
+    auto r = BuildSolid(poly, opt);
+    ASSERT_TRUE(r.ok()) << "polygon " << i << " (" << family << "): " << r.error().message;
+    std::string why;
+    for (const auto& f : r->quality.failures) why += f + "; ";
+    ASSERT_TRUE(r->quality.valid) << "polygon " << i << " (" << family << "): " << why;
+  }
+}
+
 }  // namespace
 }  // namespace rheo::mesh

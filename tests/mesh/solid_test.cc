@@ -186,5 +186,25 @@ TEST(MeshSolid, SampleSketchesMeetTheTargets) {
   }
 }
 
+TEST(MeshSolid, PaperDivisionIsValidOnSamples) {
+  const std::string dir = RHEO_SKETCH_DIR;
+  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "sample sketches not found at " << dir;
+  MeshOptions opt;
+  opt.division = Division::kPaper;
+  for (const char* name : testing::kSampleNames) {
+    SCOPED_TRACE(name);
+    Polygon2 contour;
+    ASSERT_TRUE(testing::ReadContour(dir + "/" + name + ".truth.json", contour));
+    auto r = BuildSolid(contour, opt);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_TRUE(r->quality.valid) << Failures(r->quality);
+    // Same Teddy surface sampled differently: volumes agree with the default division.
+    auto q = BuildSolid(contour, MeshOptions());
+    ASSERT_TRUE(q.ok());
+    EXPECT_NEAR(r->quality.surface_volume, q->quality.surface_volume,
+                0.1 * q->quality.surface_volume);
+  }
+}
+
 }  // namespace
 }  // namespace rheo::mesh

@@ -20,6 +20,7 @@ struct MeshArgs {
   double thickness = 1.0;
   double resolution = 0;
   double pixel_size = 0;
+  std::string division = "quality";
   bool json = false;
 };
 
@@ -58,6 +59,7 @@ int RunMesh(const MeshArgs& a) {
   opt.thickness = a.thickness;
   if (a.resolution > 0) opt.resolution = a.resolution;
   if (a.pixel_size > 0) opt.pixel_size = a.pixel_size;
+  opt.division = a.division == "paper" ? mesh::Division::kPaper : mesh::Division::kQuality;
   auto r = mesh::BuildSolid(contour, opt);
   if (!r.ok()) {
     std::cerr << "rheo mesh: " << ErrorCodeName(r.error().code) << ": " << r.error().message
@@ -88,7 +90,8 @@ int RunMesh(const MeshArgs& a) {
     j["input"] = a.input;
     j["options"] = {{"pixel_size_m", opt.pixel_size},
                     {"thickness", opt.thickness},
-                    {"resolution_m", opt.resolution}};
+                    {"resolution_m", opt.resolution},
+                    {"division", a.division}};
     j["counts"] = {{"contour_points_in", contour.points.size()},
                    {"contour_points_meshed", r->contour.size()},
                    {"cdt_triangles", r->cdt.triangles.size()},
@@ -160,6 +163,9 @@ void AddMeshCommand(CLI::App& app) {
   cmd->add_option("--pixel-size", args->pixel_size, "metres per pixel (default 2.5e-4)");
   cmd->add_option("--surface", args->surface, "also write the surface (.obj, .ply or .stl)");
   cmd->add_option("--svg", args->svg, "also write the 2D triangulation by class (.svg)");
+  cmd->add_option("--division", args->division,
+                  "2D cells under the columns: quality (default) or paper (Teddy's rows)")
+      ->check(CLI::IsMember({"quality", "paper"}));
   cmd->add_flag("--json", args->json, "print counts, quality report and stage timings as JSON");
   cmd->callback([args] { g_exit_code = RunMesh(*args); });
 }
