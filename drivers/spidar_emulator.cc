@@ -2,6 +2,8 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <pthread.h>
+#include <sched.h>
 #include <stdlib.h>
 #include <termios.h>
 #include <unistd.h>
@@ -131,6 +133,11 @@ GripSnapshot SpidarEmulator::Snapshot() const {
 }
 
 void SpidarEmulator::Run() {
+  if (options_.realtime_priority > 0) {
+    sched_param param{};
+    param.sched_priority = options_.realtime_priority;
+    realtime_ = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
+  }
   std::array<uint8_t, 256> buf;
   while (!stop_.load(std::memory_order_acquire)) {
     pollfd p{master_fd_, POLLIN, 0};

@@ -36,6 +36,9 @@ struct EmulatorOptions {
   double lockstep_dt = 1e-3;  // [s]
   int board_id = 0;
   int model = 7;  // reported model; 7: 8 motors, 4 force inputs
+  // > 0: try SCHED_FIFO at this priority for the emulator thread, so that a busy machine does
+  // not delay the emulated board's replies (a real board answers from its own processor).
+  int realtime_priority = 0;
 };
 
 /// The true state of the emulated grip.
@@ -81,6 +84,8 @@ class SpidarEmulator {
   void SetHandWrench(const Wrench& wrench);
 
   GripSnapshot Snapshot() const;
+  /// Whether the emulator thread got SCHED_FIFO (options.realtime_priority > 0 and permitted).
+  bool realtime() const { return realtime_.load(std::memory_order_acquire); }
   /// Stops the thread; the pty closes. Idempotent.
   void Stop();
 
@@ -102,6 +107,7 @@ class SpidarEmulator {
   std::string pty_path_;
   std::thread thread_;
   std::atomic<bool> stop_{false};
+  std::atomic<bool> realtime_{false};
 
   mutable std::mutex mutex_;  // guards everything below against the API threads
   GripSnapshot state_;

@@ -39,12 +39,17 @@ class Watchdog {
     if (now_ns - last_feed_ns_.load(std::memory_order_acquire) <= timeout_ns_) return false;
     tripped_.store(true, std::memory_order_release);
     trips_.fetch_add(1, std::memory_order_relaxed);
+    trip_ns_.store(now_ns, std::memory_order_relaxed);
     device_.SafeStop();
     return true;
   }
 
   bool tripped() const { return tripped_.load(std::memory_order_acquire); }
   uint64_t trips() const { return trips_.load(std::memory_order_relaxed); }
+  /// The `now_ns` of the Check() that last tripped [ns].
+  int64_t trip_ns() const { return trip_ns_.load(std::memory_order_relaxed); }
+  /// The last feed [ns].
+  int64_t last_feed_ns() const { return last_feed_ns_.load(std::memory_order_acquire); }
   int64_t timeout_ns() const { return timeout_ns_; }
   /// How often Check() should run [ns].
   int64_t poll_period_ns() const { return timeout_ns_ / 8; }
@@ -56,6 +61,7 @@ class Watchdog {
   std::atomic<bool> armed_{false};
   std::atomic<bool> tripped_{false};
   std::atomic<uint64_t> trips_{0};
+  std::atomic<int64_t> trip_ns_{0};
 };
 
 }  // namespace rheo::drivers

@@ -4,6 +4,9 @@
 // trajectory and cold-started on the same problems (ratio cold/warm), a full Exchange+SetWrench
 // through the emulator's pseudo-terminal, and the watchdog's time from the last feed to the
 // emulator seeing every motor at minimum tension.
+#include <pthread.h>
+#include <sched.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -130,9 +133,16 @@ int main(int argc, char** argv) {
   // A full tick's device part through the emulator (real-time mode, as rheod would run it).
   auto cfg = LoadSpidarConfigFile(std::string(RHEO_DRIVERS_CONFIG_DIR) + "/spidar_g_x5.json");
   if (!cfg.ok()) return 1;
-  auto emu = SpidarEmulator::Start(*cfg, EmulatorOptions{});
+  // The loop, the emulated board and the watchdog as rheod would run them: SCHED_FIFO when
+  // permitted (loop 80, emulator 85, watchdog 90), so other work on the machine cannot delay them.
+  sched_param loop_param{};
+  loop_param.sched_priority = 80;
+  const bool loop_rt = pthread_setschedparam(pthread_self(), SCHED_FIFO, &loop_param) == 0;
+  EmulatorOptions emu_options;
+  emu_options.realtime_priority = 85;
+  auto emu = SpidarEmulator::Start(*cfg, emu_options);
   if (!emu.ok()) return 1;
-  auto dev = OpenSpidarG(*cfg, (*emu)->pty_path(), {.reply_timeout_us = 20'000});
+  auto dev = OpenSpidarG(*cfg, (*emu)->pty_path(), {.reply_timeout_us = 200'000});
   if (!dev.ok()) {
     std::fprintf(stderr, "%s\n", dev.error().message.c_str());
     return 1;
@@ -153,10 +163,11 @@ int main(int argc, char** argv) {
     ex.push_back((Now() - t0) * 1e-3);
   }
   std::printf(
-      "\nExchange+SetWrench through the emulator pty, 1 kHz, %d ticks [us]: median %.1f, "
-      "p99 %.1f, p99.9 %.1f, max %.1f; failed exchanges %d\n",
-      ticks, Percentile(ex, 0.5), Percentile(ex, 0.99), Percentile(ex, 0.999), Percentile(ex, 1.0),
-      failures);
+      "\nExchange+SetWrench through the emulator pty, 1 kHz, %d ticks (loop %s, emulator %s) "
+      "[us]: median %.1f, p99 %.1f, p99.9 %.1f, max %.1f; failed exchanges %d\n",
+      ticks, loop_rt ? "SCHED_FIFO 80" : "normal priority",
+      (*emu)->realtime() ? "SCHED_FIFO 85" : "normal priority", Percentile(ex, 0.5),
+      Percentile(ex, 0.99), Percentile(ex, 0.999), Percentile(ex, 1.0), failures);
 
   // Watchdog: the loop stops feeding; time until the emulator holds minimum tension.
   const auto min_digits = [&] {
@@ -168,8 +179,9 @@ int main(int argc, char** argv) {
     }
     return m;
   }();
-  std::vector<double> lat;
+  std::vector<double> lat, trip, done;
   int skipped = 0;
+  bool realtime = false;
   const int trials = quick ? 5 : 20;
   for (int trial = 0; trial < trials; ++trial) {
     d.ClearFaults();
@@ -190,6 +202,8 @@ int main(int argc, char** argv) {
     // Stall: no more exchanges or feeds. A trial where an exchange failed (busy machine) already
     // sits at minimum tension, so it says nothing about the watchdog: skip it.
     if (d.status().faults != kFaultNone) {
+      std::fprintf(stderr, "stall %d skipped: faults %s\n", trial,
+                   FaultNames(d.status().faults).c_str());
       thread.Stop();
       ++skipped;
       continue;
@@ -203,14 +217,24 @@ int main(int argc, char** argv) {
       }
       std::this_thread::sleep_for(std::chrono::microseconds(50));
     }
+    realtime = thread.realtime();
     thread.Stop();
     lat.push_back(seen ? (seen - last_feed) * 1e-6 : NAN);
+    trip.push_back((dog.trip_ns() - last_feed) * 1e-6);
+    done.push_back(thread.stop_done_ns() ? (thread.stop_done_ns() - last_feed) * 1e-6 : NAN);
   }
   std::printf(
-      "Watchdog (timeout %.1f ms, poll %.2f ms): last feed -> minimum tension at the "
-      "emulated board [ms]: median %.2f, max %.2f over %zu stalls (goal <= 5); %d trials "
-      "skipped (an exchange failed before the stall)\n",
+      "Watchdog (timeout %.1f ms, poll %.2f ms, watchdog thread %s), after the last feed "
+      "[ms], %zu stalls (%d skipped: a fault, e.g. a trip, before the stall):\n",
       Watchdog::kDefaultTimeoutNs * 1e-6, Watchdog::kDefaultTimeoutNs / 8 * 1e-6,
-      Percentile(lat, 0.5), Percentile(lat, 1.0), lat.size(), skipped);
+      realtime ? "SCHED_FIFO 90" : "normal priority", lat.size(), skipped);
+  std::printf("  tripped:                                  median %.2f, max %.2f\n",
+              Percentile(trip, 0.5), Percentile(trip, 1.0));
+  std::printf("  SafeStop done (command sent, reply read): median %.2f, max %.2f (goal <= 5)\n",
+              Percentile(done, 0.5), Percentile(done, 1.0));
+  std::printf(
+      "  emulated board applied minimum tension:   median %.2f, max %.2f (includes the "
+      "emulator thread's own scheduling)\n",
+      Percentile(lat, 0.5), Percentile(lat, 1.0));
   return 0;
 }

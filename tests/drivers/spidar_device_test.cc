@@ -11,6 +11,9 @@
 #include "test_util.h"
 
 namespace rheo::drivers {
+namespace testutil {
+long ThreadAllocations();  // heap allocations by this thread so far (spidar_guards_test.cc)
+}  // namespace testutil
 namespace {
 
 constexpr double kDt = 1e-3;
@@ -112,7 +115,11 @@ TEST_F(SpidarDeviceTest, ReadsThePoseTheHandMovesTheGripTo) {
 TEST_F(SpidarDeviceTest, CommandedWrenchActsOnTheGripAndTheHandFeelsIt) {
   CalibrateAtHome();
   const Wrench w{Vec3(2.0, 0.5, -1.0), Vec3(0.0, 0.01, 0.005)};
-  Run(400, w);
+  Run(10, w);
+  // The real path (termios, UART codec, pose, QP) allocates nothing on the loop thread.
+  const long allocations = testutil::ThreadAllocations();
+  Run(390, w);
+  EXPECT_EQ(testutil::ThreadAllocations() - allocations, 0);
   const GripSnapshot s = emu_->Snapshot();
   const DeviceStatus& st = dev_->status();
   EXPECT_EQ(st.faults, kFaultNone) << FaultNames(st.faults);
