@@ -95,10 +95,11 @@ LoopResult RunLoop(double claimed_damping, double real_damping, double coupling_
       ++n;
     }
   }
-  std::printf("closed loop: configured b = %g N s/m, real b = %g N s/m, B = %g N s/m, k = %g N/m: "
-              "force envelope (peak-to-peak) 0.5-1.0 s %.3g N, 2.5-3.0 s %.3g N, mean %.3g N\n",
-              claimed_damping, real_damping, coupling_damping, r.effective_stiffness(),
-              e_hi - e_lo, l_hi - l_lo, sum / n);
+  std::printf(
+      "closed loop: configured b = %g N s/m, real b = %g N s/m, B = %g N s/m, k = %g N/m: "
+      "force envelope (peak-to-peak) 0.5-1.0 s %.3g N, 2.5-3.0 s %.3g N, mean %.3g N\n",
+      claimed_damping, real_damping, coupling_damping, r.effective_stiffness(), e_hi - e_lo,
+      l_hi - l_lo, sum / n);
   res.early_p2p = e_hi - e_lo;
   res.late_p2p = l_hi - l_lo;
   res.mean_force = sum / n;

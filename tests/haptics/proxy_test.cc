@@ -297,5 +297,47 @@ TEST(HapticsProxy, ForceIsClampedToDeviceMaximum) {
   EXPECT_NEAR(out.wrench.force.z(), 5.0, 1e-12);
 }
 
+TEST(HapticsProxy, ToolStartingInsideIsPlacedOnTheSurface) {
+  const TriSurface box = BoxSurface(4, 4, 2, kH, Vec3::Zero());
+  const Vec3 inside(0.02, 0.02, 0.018);  // 2 mm under the top face, 18 mm above the bottom
+  Renderer r = Make(StiffConfig(), box, inside);
+  auto out = r.Update({inside, Vec3::Zero()}, box.positions, kDt);
+  ASSERT_TRUE(out.ok());
+  EXPECT_NEAR(out->proxy.z(), 0.02 + kR, 1e-12);
+  EXPECT_TRUE(out->in_contact);
+  EXPECT_GT(out->wrench.force.z(), 0.0);
+}
+
+TEST(HapticsProxy, SurfaceSweepingIntoARestingToolPushesTheProxyAhead) {
+  // The block rises 0.4 mm per tick (0.4 m/s) into a device held still above it; the proxy is
+  // pushed ahead of the top face and never ends inside, and the force grows as k x overlap.
+  TriSurface box = BoxSurface(4, 4, 2, kH, Vec3::Zero());
+  const std::vector<Vec3> rest = box.positions;
+  RendererConfig c = StiffConfig();
+  c.max_surface_speed = 0.5;
+  const Vec3 device(0.021, 0.019, 0.026);  // 3 mm above the tool's contact height
+  Renderer r = Make(c, box, device);
+  int contact = 0;
+  for (int i = 1; i <= 25; ++i) {
+    const double lift = 4e-4 * i;
+    for (size_t n = 0; n < rest.size(); ++n) box.positions[n] = rest[n] + Vec3(0, 0, lift);
+    auto out = r.Update({device, Vec3::Zero()}, box.positions, kDt);
+    ASSERT_TRUE(out.ok());
+    const double top = 0.02 + lift;
+    EXPECT_GE(out->proxy.z(), top + kR - 1e-12) << i;
+    const double overlap = top + kR - device.z();
+    if (overlap > 1e-9) {
+      ++contact;
+      EXPECT_TRUE(out->in_contact) << i;
+      EXPECT_NEAR(out->proxy.z(), top + kR, 1e-12) << i;
+      EXPECT_NEAR(out->wrench.force.z(), r.effective_stiffness() * overlap, 1e-9) << i;
+    } else {
+      EXPECT_FALSE(out->in_contact) << i;
+      EXPECT_NEAR((out->proxy - device).norm(), 0.0, 1e-12) << i;
+    }
+  }
+  EXPECT_GT(contact, 10);
+}
+
 }  // namespace
 }  // namespace rheo::haptics

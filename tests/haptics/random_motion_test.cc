@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <string>
 
 #include "haptics/haptics.h"
 #include "haptics/surface_grid.h"
@@ -130,7 +131,12 @@ INSTANTIATE_TEST_SUITE_P(Haptics, RandomMotion,
                          ::testing::Values(Params{0.0, 0.0, 4096, 0.003, 1},
                                            Params{0.4, 0.3, 4096, 0.003, 2},
                                            Params{0.2, 0.1, 40, 0.002, 3},
-                                           Params{1.5, 1.0, 97, 0.005, 4}));
+                                           Params{1.5, 1.0, 97, 0.005, 4}),
+                         [](const ::testing::TestParamInfo<Params>& info) {
+                           const Params& p = info.param;
+                           return "mu" + std::to_string(static_cast<int>(p.mu_s * 10)) + "_rebin" +
+                                  std::to_string(p.rebin) + "_seed" + std::to_string(p.seed);
+                         });
 
 // The grid returns every face within a distance of the query point, however stale its bins, as
 // long as the caller widens the radius by reach + max speed x staleness.
