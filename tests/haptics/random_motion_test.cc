@@ -59,8 +59,8 @@ class RandomMotion : public ::testing::TestWithParam<Params> {};
 
 TEST_P(RandomMotion, ProxyStaysOutsideAndForcesStayLimitedAndBalanced) {
   const Params prm = GetParam();
-  const TriSurface s = SphereSurface(Vec3::Zero(), kR0, 20, 38);  // 1444 triangles
-  constexpr int kTicks = 4000;
+  const TriSurface s = SphereSurface(Vec3::Zero(), kR0, 16, 30);  // 900 triangles
+  constexpr int kTicks = 3000;
   RendererConfig c;
   c.tool_radius = prm.tool_radius;
   c.static_friction = prm.mu_s;
