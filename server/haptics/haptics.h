@@ -90,8 +90,8 @@ struct ContactOutput {
   std::span<const NodeForce> node_forces;  ///< reaction on the object (at most 3 x 8 entries)
   Vec3 proxy = Vec3::Zero();               ///< proxy (god-object) centre [m]
   Vec3 contact_normal = Vec3::Zero();      ///< unit outward normal at the contact, zero if none
-  bool in_contact = false;                 ///< the proxy touches the surface and is held off the
-                                           ///< device by it
+  bool in_contact = false;                 ///< the surface holds the proxy off the device (the
+                                           ///< proxy touches it, or ran out of max_step sliding)
   bool sliding = false;                    ///< the proxy slid along the surface this tick
   int32_t contact_faces = 0;               ///< faces touching the proxy
   int32_t candidate_faces = 0;             ///< faces examined by the local search this tick
@@ -104,13 +104,14 @@ class Renderer {
   /// Builds the renderer for `triangles` (indices into the node positions, outward by the
   /// right-hand rule, forming a closed 2-manifold) at the node positions `positions` (the whole
   /// node array of the simulated object; nodes not on the surface are ignored).
-  /// The proxy starts at `tool`, which must be outside the surface.
+  /// The proxy starts at `tool`; a tool inside the surface puts it on the nearest surface point.
   static Result<Renderer> Create(const RendererConfig& config,
                                  std::span<const std::array<int32_t, 3>> triangles,
                                  std::span<const Vec3> positions, const Vec3& tool);
 
   /// One tick: the device state, the current node positions (same size as at Create) and the
-  /// elapsed time since the previous tick [s], (0, 0.1].
+  /// elapsed time since the previous tick [s], (0, 0.1]. Only the error path allocates (its
+  /// message). @pre surface vertices move slower than config().max_surface_speed.
   Result<ContactOutput> Update(const DeviceState& device, std::span<const Vec3> positions,
                                double dt);
 
