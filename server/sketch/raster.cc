@@ -86,10 +86,14 @@ Bitmap Binarize(const GrayImage& img, const ContourOptions& o, std::string* desc
   constexpr int kGrid = 8;
   std::vector<std::array<uint32_t, 256>> blocks(kGrid * kGrid, std::array<uint32_t, 256>{});
   uint32_t hist[256] = {};
-  for (int y = 0; y < h; ++y) {
-    const int by = y * kGrid / h;
+  std::vector<int> bx(w);
+  for (int x = 0; x < w; ++x) bx[x] = x * kGrid / w;
+  // Statistics only: every second row and column is plenty above a megapixel.
+  const int step = int64_t(w) * h > (1 << 20) ? 2 : 1;
+  for (int y = 0; y < h; y += step) {
+    auto* brow = &blocks[y * kGrid / h * kGrid];
     const uint8_t* row = px + size_t(y) * w;
-    for (int x = 0; x < w; ++x) ++blocks[by * kGrid + x * kGrid / w][row[x]];
+    for (int x = 0; x < w; x += step) ++brow[bx[x]][row[x]];
   }
   for (const auto& b : blocks)
     for (int i = 0; i < 256; ++i) hist[i] += b[i];
@@ -140,6 +144,7 @@ Bitmap Binarize(const GrayImage& img, const ContourOptions& o, std::string* desc
   int win = o.adaptive_window_px > 0 ? o.adaptive_window_px : std::max(15, std::min(w, h) / 8);
   win |= 1;
   const int r = win / 2;
+  // Sums modulo 2^32: window sums (< 2^32) come out exact from wrapped differences.
   std::vector<uint32_t> integral(size_t(w + 1) * (h + 1), 0);
   for (int y = 0; y < h; ++y) {
     uint32_t run = 0;
@@ -155,12 +160,21 @@ Bitmap Binarize(const GrayImage& img, const ContourOptions& o, std::string* desc
     const uint32_t* bot = &integral[size_t(y1) * (w + 1)];
     const uint8_t* row = px + size_t(y) * w;
     uint8_t* dst = &out.v[out.Index(0, y)];
-    for (int x = 0; x < w; ++x) {
+    auto at = [&](int x) {
       const int x0 = std::max(0, x - r), x1 = std::min(w, x + r + 1);
-      const uint64_t sum = uint64_t(bot[x1]) - bot[x0] - top[x1] + top[x0];
+      const uint32_t sum = bot[x1] - bot[x0] - top[x1] + top[x0];
       const uint64_t count = uint64_t(x1 - x0) * (y1 - y0);
-      dst[x] = uint64_t(row[x]) * count * 1024 < sum * keep;
+      dst[x] = uint64_t(row[x]) * count * 1024 < uint64_t(sum) * keep;
+    };
+    const int mid0 = std::min(w, r), mid1 = std::max(mid0, w - r - 1);
+    for (int x = 0; x < mid0; ++x) at(x);
+    // Away from the sides the window is whole: no clamping, a constant count.
+    const uint64_t c = uint64_t(2 * r + 1) * (y1 - y0) * 1024;
+    for (int x = mid0; x < mid1; ++x) {
+      const uint32_t sum = bot[x + r + 1] - bot[x - r] - top[x + r + 1] + top[x - r];
+      dst[x] = row[x] * c < uint64_t(sum) * keep;
     }
+    for (int x = mid1; x < w; ++x) at(x);
   }
   *description = "adaptive(w=" + std::to_string(win) + ")";
   return out;
@@ -171,50 +185,57 @@ int HilditchThin(Bitmap& bm) {
   const int s = bm.stride;
   const auto off = Offsets(s);
   uint8_t* v = bm.v.data();
+  // Pixel bits: 1 ink now, 2 deleted in this pass (ink for the border conditions), 0x80 listed.
+  constexpr uint8_t kListed = 0x80;
   std::vector<int> cand, next, deleted;
-  std::vector<int> stamp(bm.v.size(), 0);
   for (int y = 0; y < bm.height; ++y) {
+    const int row = bm.Index(0, y);
     for (int x = 0; x < bm.width; ++x) {
-      const int i = bm.Index(x, y);
-      if (v[i] == 1 && MaskOf(v, i, off, 1) != 0xFF) cand.push_back(i);
+      const int i = row + x;
+      if (v[i] == 1 && MaskOf(v, i, off, 1) != 0xFF) cand.push_back(i), v[i] |= kListed;
     }
   }
   int passes = 0;
-  // Values during a pass: 1 ink, 2 deleted in this pass (still ink for the border conditions).
-  while (!cand.empty()) {
+  // Interior pixels (all 8 neighbours ink) can never go, so the list holds every pixel that
+  // might: last pass's survivors plus the neighbours of its deletions.
+  for (;;) {
     ++passes;
     deleted.clear();
+    next.clear();
     for (int i : cand) {
-      if (v[i] != 1) continue;
       const unsigned m_old = MaskOf(v, i, off, 3);
       const int b = tb.b[m_old];
-      if (b < 2 || b > 6 || tb.a[m_old] != 1) continue;
-      const bool p2 = m_old & 1, p4 = m_old & 4, p6 = m_old & 16, p8 = m_old & 64;
-      if (p2 && p4 && p8 && tb.a[MaskOf(v, i + off[0], off, 3)] == 1) continue;
-      if (p2 && p4 && p6 && tb.a[MaskOf(v, i + off[2], off, 3)] == 1) continue;
-      // Sequential topology guard on the current picture: simple and not an end point.
-      const unsigned m_cur = MaskOf(v, i, off, 1);
-      if (tb.n8[m_cur] != 1 || tb.b[m_cur] < 2) continue;
-      v[i] = 2;
-      deleted.push_back(i);
-    }
-    next.clear();
-    for (int i : deleted) v[i] = 0;
-    for (int i : deleted) {
-      for (int dy = -2; dy <= 2; ++dy) {
-        for (int dx = -2; dx <= 2; ++dx) {
-          const int j = i + dy * s + dx;
-          if (j < 0 || j >= static_cast<int>(bm.v.size()) || v[j] != 1 || stamp[j] == passes) {
-            continue;
-          }
-          stamp[j] = passes;
-          next.push_back(j);
-        }
+      bool del = b >= 2 && b <= 6 && tb.a[m_old] == 1;
+      if (del) {
+        const bool p2 = m_old & 1, p4 = m_old & 4, p6 = m_old & 16, p8 = m_old & 64;
+        if (p2 && p4 && p8 && tb.a[MaskOf(v, i + off[0], off, 3)] == 1) del = false;
+        if (p2 && p4 && p6 && tb.a[MaskOf(v, i + off[2], off, 3)] == 1) del = false;
+      }
+      if (del) {
+        // Sequential topology guard on the current picture: simple and not an end point.
+        const unsigned m_cur = MaskOf(v, i, off, 1);
+        del = tb.n8[m_cur] == 1 && tb.b[m_cur] >= 2;
+      }
+      if (del) {
+        v[i] = 2;
+        deleted.push_back(i);
+      } else if (b < 8) {
+        next.push_back(i);
+      } else {
+        v[i] &= ~kListed;
       }
     }
-    std::sort(next.begin(), next.end());
+    if (deleted.empty()) break;
+    for (int i : deleted) v[i] = 0;
+    for (int i : deleted) {
+      for (int d : off) {
+        const int j = i + d;
+        if (v[j] == 1) v[j] |= kListed, next.push_back(j);
+      }
+    }
     cand.swap(next);
   }
+  for (int i : next) v[i] &= 1;
   return passes;
 }
 
@@ -229,8 +250,8 @@ int64_t RemoveSpurs(Bitmap& bm) {
   const int four[4] = {-s, 1, s, -1};
   uint8_t* v = bm.v.data();
   const int n = static_cast<int>(bm.v.size());
+  constexpr uint8_t kListed = 0x80;
   std::vector<int> cand, next;
-  std::vector<int> stamp(bm.v.size(), 0);
   for (int i = 0; i < n; ++i)
     if (v[i] == 1) cand.push_back(i);
   // A background pixel whose four 4-neighbours are all ink: a one-pixel hole.
@@ -239,15 +260,15 @@ int64_t RemoveSpurs(Bitmap& bm) {
     const int x = j % s, y = j / s;
     if (x == 0 || y == 0 || x == s - 1 || y == bm.height + 1) return false;
     for (int d : four)
-      if (v[j + d] != 1) return false;
+      if ((v[j + d] & 1) == 0) return false;
     return true;
   };
   int64_t removed = 0;
-  int round = 0;
+  // Rescan until nothing changes; only pixels near a deletion can change their status.
   while (!cand.empty()) {
-    ++round;
     next.clear();
     for (int i : cand) {
+      v[i] &= ~kListed;
       if (v[i] != 1) continue;
       const unsigned m = MaskOf(v, i, off, 1);
       const int c = tb.n8[m];
@@ -261,8 +282,7 @@ int64_t RemoveSpurs(Bitmap& bm) {
       for (int dy = -2; dy <= 2; ++dy) {
         for (int dx = -2; dx <= 2; ++dx) {
           const int j = i + dy * s + dx;
-          if (j >= 0 && j < n && v[j] == 1 && stamp[j] != round)
-            stamp[j] = round, next.push_back(j);
+          if (j >= 0 && j < n && v[j] == 1) v[j] |= kListed, next.push_back(j);
         }
       }
     }
@@ -273,21 +293,9 @@ int64_t RemoveSpurs(Bitmap& bm) {
 }
 
 void FillEnclosed(Bitmap& bm, uint8_t fill) {
-  // Mark the outside (4-connected zeros reachable from the frame) with 0xFE, then swap labels.
+  // Mark the outside (4-connected zeros reachable from the frame), then swap labels.
   constexpr uint8_t kOut = 0xFE;
-  const int s = bm.stride, rows = bm.height + 2;
-  uint8_t* v = bm.v.data();
-  std::vector<int> stack = {0};
-  v[0] = kOut;
-  while (!stack.empty()) {
-    const int i = stack.back();
-    stack.pop_back();
-    const int x = i % s, y = i / s;
-    if (x > 0 && v[i - 1] == 0) v[i - 1] = kOut, stack.push_back(i - 1);
-    if (x < s - 1 && v[i + 1] == 0) v[i + 1] = kOut, stack.push_back(i + 1);
-    if (y > 0 && v[i - s] == 0) v[i - s] = kOut, stack.push_back(i - s);
-    if (y < rows - 1 && v[i + s] == 0) v[i + s] = kOut, stack.push_back(i + s);
-  }
+  SpanFill<false>(bm, 0, 0, kOut, [](int, int, int, int) {});
   for (auto& x : bm.v) x = x == kOut ? 0 : (x == 0 ? fill : x);
 }
 

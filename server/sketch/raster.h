@@ -2,7 +2,9 @@
 // Internal; exposed for tests and benchmarks.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
+#include <cstring>
 #include <span>
 #include <string>
 #include <vector>
@@ -69,5 +71,49 @@ std::vector<std::pair<int, int>> TraceOuterBoundary(const Bitmap& region);
 
 /// Sets every 0 pixel not 4-connected to the frame to `fill`.
 void FillEnclosed(Bitmap& bitmap, uint8_t fill);
+
+/// Span flood fill: turns the 4-connected region of `from` pixels around seed (an index into
+/// bm.v) into `to`, calling on_span(row_index, x_first, x_last, edges) per filled run (padded x),
+/// where edges counts the 4-neighbours of the run that are neither `from` nor `to` (when
+/// kCountEdges; else 0).
+template <bool kCountEdges, typename OnSpan>
+void SpanFill(Bitmap& bm, int seed, uint8_t from, uint8_t to, OnSpan on_span) {
+  const int s = bm.stride, rows = bm.height + 2;
+  uint8_t* v = bm.v.data();
+  std::vector<int> stack = {seed};
+  while (!stack.empty()) {
+    const int i = stack.back();
+    stack.pop_back();
+    if (v[i] != from) continue;
+    const int y = i / s, row = y * s;
+    int xl = i - row, xr = xl;
+    while (xl > 0 && v[row + xl - 1] == from) --xl;
+    while (xr < s - 1 && v[row + xr + 1] == from) ++xr;
+    std::fill(v + row + xl, v + row + xr + 1, to);
+    int edges = 0;
+    if constexpr (kCountEdges) {
+      edges = (xl > 0 && v[row + xl - 1] != to) + (xr < s - 1 && v[row + xr + 1] != to);
+    }
+    for (int ny : {y - 1, y + 1}) {
+      if (ny < 0 || ny >= rows) continue;
+      uint8_t* nrow = v + ny * s;
+      const int len = xr - xl + 1;
+      if constexpr (kCountEdges) {
+        edges += len - static_cast<int>(std::count(nrow + xl, nrow + xr + 1, from)) -
+                 static_cast<int>(std::count(nrow + xl, nrow + xr + 1, to));
+      }
+      // Seed each run of `from` in the neighbour row once.
+      int x = xl;
+      while (x <= xr) {
+        const void* hit = std::memchr(nrow + x, from, xr - x + 1);
+        if (!hit) break;
+        x = static_cast<int>(static_cast<const uint8_t*>(hit) - nrow);
+        stack.push_back(ny * s + x);
+        while (x <= xr && nrow[x] == from) ++x;
+      }
+    }
+    on_span(row, xl, xr, edges);
+  }
+}
 
 }  // namespace rheo::sketch::internal

@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <memory>
+#include <optional>
 
 #include "sketch/format.h"
 #include "sketch/polyline.h"
@@ -154,6 +156,7 @@ struct Component {
   int64_t boundary = 0;                              // ink pixels with a non-ink 4-neighbour
   int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;  // bounding box, padded coordinates
   std::vector<int> holes;
+  size_t first_pixel = 0;        // range in the ink pixel list
   int64_t hole_area = 0;         // all holes [px]
   int64_t significant_area = 0;  // holes that are not slivers inside the line [px]
   int significant = 0;
@@ -164,38 +167,16 @@ struct Component {
 
 struct Hole {
   int64_t area = 0;
-  int64_t perimeter = 0;  // hole pixels with an ink 4-neighbour
+  int64_t perimeter = 0;  // 4-neighbour edges to ink
   int parent = -1;
   bool significant = false;
+  size_t first_span = 0, spans = 0;  // range in the span list
 };
 
-// Span flood fill of 4-connected `from` pixels starting at seed; calls visit(i) on each.
-template <typename Visit>
-void SpanFill(Bitmap& bm, int seed, uint8_t from, uint8_t to, Visit visit) {
-  const int s = bm.stride, rows = bm.height + 2;
-  uint8_t* v = bm.v.data();
-  std::vector<int> stack = {seed};
-  while (!stack.empty()) {
-    const int i = stack.back();
-    stack.pop_back();
-    if (v[i] != from) continue;
-    const int y = i / s, row = y * s;
-    int xl = i - row, xr = xl;
-    while (xl > 0 && v[row + xl - 1] == from) --xl;
-    while (xr < s - 1 && v[row + xr + 1] == from) ++xr;
-    for (int x = xl; x <= xr; ++x) v[row + x] = to, visit(row + x);
-    for (int ny : {y - 1, y + 1}) {
-      if (ny < 0 || ny >= rows) continue;
-      const int nrow = ny * s;
-      bool in_run = false;
-      for (int x = xl; x <= xr; ++x) {
-        const bool f = v[nrow + x] == from;
-        if (f && !in_run) stack.push_back(nrow + x);
-        in_run = f;
-      }
-    }
-  }
-}
+struct Span {
+  int row;  // index of the row's first padded pixel
+  int xl, xr;
+};
 
 std::string Box(const Component& c) {
   return Pt(Vec2(c.x0 - 1, c.y0 - 1)) + "-" + Pt(Vec2(c.x1 - 1, c.y1 - 1));
@@ -263,25 +244,29 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
   const int s = bm.stride;
   uint8_t* v = bm.v.data();
   const size_t npx = bm.v.size();
-  std::unique_ptr<int32_t[]> label(new int32_t[npx]);  // written for ink and hole pixels only
-  SpanFill(bm, 0, kBg, kOutside, [](int) {});
+  // Component id per ink pixel; only ink pixels are written, so the pages of paper stay untouched.
+  std::unique_ptr<int32_t[]> label(new int32_t[npx]);
+  internal::SpanFill<false>(bm, 0, kBg, kOutside, [](int, int, int, int) {});
   std::vector<Component> comps;
   std::vector<Hole> holes;
+  std::vector<Span> spans;
+  std::vector<int> ink;  // pixels of every component, component after component
   std::vector<int> stack;
   const int off8[8] = {-s - 1, -s, -s + 1, -1, 1, s - 1, s, s + 1};
   const int off4[4] = {-s, -1, 1, s};
-  for (size_t i0 = 0; i0 < npx; ++i0) {
-    const int i = static_cast<int>(i0);
+  auto visit = [&](int i) {
     if (v[i] == kInk) {
       const int id = static_cast<int>(comps.size());
       comps.emplace_back();
       Component& c = comps.back();
+      c.first_pixel = ink.size();
       stack.assign(1, i);
       v[i] = kInkSeen;
       while (!stack.empty()) {
         const int p = stack.back();
         stack.pop_back();
         label[p] = id;
+        ink.push_back(p);
         ++c.area;
         const int x = p % s, y = p / s;
         c.x0 = std::min(c.x0, x), c.x1 = std::max(c.x1, x);
@@ -293,24 +278,32 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
           if (v[p + d] == kInk) v[p + d] = kInkSeen, stack.push_back(p + d);
         }
       }
-    } else if (v[i] == kBg) {
+    } else {  // kBg: a hole; the pixel left of its first pixel is ink of the enclosing component
       const int id = static_cast<int>(holes.size());
       Hole h;
       h.parent = label[i - 1];
-      SpanFill(bm, i, kBg, kHoleSeen, [&](int p) {
-        label[p] = id;
-        ++h.area;
-        for (int d : off4) {
-          if (v[p + d] == kInk || v[p + d] == kInkSeen) {
-            ++h.perimeter;
-            break;
-          }
-        }
+      h.first_span = spans.size();
+      internal::SpanFill<true>(bm, i, kBg, kHoleSeen, [&](int row, int xl, int xr, int edges) {
+        spans.push_back({row, xl, xr});
+        h.area += xr - xl + 1;
+        h.perimeter += edges;
       });
+      h.spans = spans.size() - h.first_span;
       holes.push_back(h);
       comps[h.parent].holes.push_back(id);
     }
+  };
+  // Skip 8 bytes at a time while none is unvisited ink (1) or paper (0).
+  const size_t words = npx / 8;
+  for (size_t w = 0; w < words; ++w) {
+    uint64_t x;
+    std::memcpy(&x, v + 8 * w, 8);
+    if (((x - 0x0202020202020202ULL) & ~x & 0x8080808080808080ULL) == 0) continue;
+    for (size_t k = 8 * w; k < 8 * w + 8; ++k)
+      if (v[k] <= kInk) visit(static_cast<int>(k));
   }
+  for (size_t k = 8 * words; k < npx; ++k)
+    if (v[k] <= kInk) visit(static_cast<int>(k));
   sw.Lap("components", r);
 
   const int64_t speck = std::max<int64_t>(16, int64_t(1e-4 * double(r.width) * r.height));
@@ -345,22 +338,23 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
                          std::to_string(speck) + " px");
   }
 
-  // Crop of one component: its ink, plus the holes named by `fill_hole`.
+  // Crop of one component: its ink, plus its slivers of paper (or all its holes).
   auto crop = [&](const Component& c, int id, bool fill_all_holes) {
     Bitmap b(c.x1 - c.x0 + 1, c.y1 - c.y0 + 1);
-    for (int y = c.y0; y <= c.y1; ++y) {
-      for (int x = c.x0; x <= c.x1; ++x) {
-        const int p = y * s + x;
-        bool on = false;
-        if (v[p] == kInkSeen) {
-          on = label[p] == id;
-        } else if (v[p] == kHoleSeen) {
-          const Hole& h = holes[label[p]];
-          on = h.parent == id && (fill_all_holes || !h.significant);
-        }
-        b.at(x - c.x0, y - c.y0) = on;
+    const int cs = b.stride;
+    auto to_crop = [&](int p) { return (p / s - c.y0 + 1) * cs + (p % s - c.x0 + 1); };
+    for (size_t k = c.first_pixel; k < c.first_pixel + size_t(c.area); ++k)
+      b.v[to_crop(ink[k])] = 1;
+    for (int hid : c.holes) {
+      const Hole& h = holes[hid];
+      if (h.significant && !fill_all_holes) continue;
+      for (size_t k = h.first_span; k < h.first_span + h.spans; ++k) {
+        const Span& sp = spans[k];
+        const int q = to_crop(sp.row + sp.xl);
+        std::fill(b.v.begin() + q, b.v.begin() + q + (sp.xr - sp.xl + 1), 1);
       }
     }
+    (void)id;
     return b;
   };
 
@@ -394,9 +388,13 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
     internal::HilditchThin(b);
     auto t1 = now();
     t_thin += ms(t0, t1);
-    Bitmap skeleton = b;
+    Bitmap skeleton;
+    if (c.kind == Component::kOpen) skeleton = b;  // for finding its ends
     internal::RemoveSpurs(b);
     int64_t kept = b.Count();
+    if (kept == 0 && skeleton.v.empty()) {
+      return InvalidArgument("not closed: the line in " + Box(c) + " encloses nothing");
+    }
     if (kept == 0) {
       // Open line: its two far ends are the gap.
       std::vector<int> dist(skeleton.v.size());
@@ -427,9 +425,9 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
     auto t2 = now();
     t_spur += ms(t1, t2);
     e.line_width = double(c.area) / double(std::max<int64_t>(1, kept));
-    internal::FillEnclosed(b, 1);
-    e.enclosed = double(b.Count());
+    // Moore tracing hugs the outside, so inner loops and lines are never entered.
     e.chain = to_chain(b, c);
+    e.enclosed = std::abs(internal::SignedArea(e.chain));
     if (c.significant > 1) {
       e.notes.push_back("inner loops ignored: the outline in " + Box(c) + " encloses " +
                         std::to_string(c.significant) +
@@ -445,9 +443,9 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
     e.silhouette = true;
     auto t0 = now();
     Bitmap b = crop(c, id, true);
-    e.enclosed = double(c.area + c.hole_area);
     e.line_width = 0.0;
     e.chain = to_chain(b, c);
+    e.enclosed = std::abs(internal::SignedArea(e.chain));
     if (c.significant > 0) {
       e.notes.push_back("holes ignored: the filled shape in " + Box(c) + " has " +
                         std::to_string(c.significant) + " hole(s); its outer edge is used");

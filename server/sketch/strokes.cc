@@ -211,7 +211,11 @@ Join BestJoin(const std::vector<Vec2>& a, const std::vector<Vec2>& b, double w) 
   const int b1 = HeadEnd(b, w);
   // Crossing of the two ends: an overshoot or overdraw; cut both there (gap 0). Keep the most.
   double best_lost = INFINITY;
+  Eigen::AlignedBox2d bbox;
+  for (int k = 0; k <= b1; ++k) bbox.extend(b[k]);
   for (int i = na - 2; i >= a0; --i) {
+    Eigen::AlignedBox2d seg(a[i].cwiseMin(a[i + 1]), a[i].cwiseMax(a[i + 1]));
+    if (!seg.intersects(bbox)) continue;
     for (int k = 0; k < b1; ++k) {
       const Vec2 &p = a[i], &q = a[i + 1], &r = b[k], &s = b[k + 1];
       if (std::max(r.x(), s.x()) < std::min(p.x(), q.x()) ||
@@ -326,7 +330,7 @@ Result<MergedOutline> MergeStrokes(const StrokeSet& set, const ContourOptions& o
       Join best_join;
       for (size_t s = 0; s < strokes.size(); ++s) {
         if (used[s]) continue;
-        const double w = std::min({0.35 * lc, 0.35 * len[s], 0.1 * (lc + len[s]) + 10.0});
+        const double w = std::min({0.35 * lc, 0.35 * len[s], 0.05 * (lc + len[s]) + 15.0});
         const double limit = frac * (lc + len[s]);
         for (int head = 0; head < 2; ++head) {
           const Vec2 end = head ? chain.pts.front() : chain.pts.back();
@@ -385,7 +389,7 @@ Result<MergedOutline> MergeStrokes(const StrokeSet& set, const ContourOptions& o
     const auto& p = chains[c].pts;
     const double l = OpenLength(p);
     const double limit = frac * l;
-    const double w = std::min(0.35 * l, 0.1 * l + 10.0);
+    const double w = std::min(0.35 * l, 0.05 * l + 15.0);
     std::vector<Vec2> head(p.begin(), p.begin() + HeadEnd(p, w) + 1);
     std::vector<Vec2> tail(p.begin() + TailStart(p, w), p.end());
     const int tail_off = TailStart(p, w);

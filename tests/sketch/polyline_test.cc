@@ -12,7 +12,7 @@
 namespace rheo::sketch::internal {
 namespace {
 
-TEST(Polyline, SignedAreaOfUnitSquareIsPositiveCounterClockwise) {
+TEST(SketchPolyline, SignedAreaOfUnitSquareIsPositiveCounterClockwise) {
   std::vector<Vec2> sq = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
   EXPECT_DOUBLE_EQ(SignedArea(sq), 1.0);
   std::reverse(sq.begin(), sq.end());
@@ -20,7 +20,7 @@ TEST(Polyline, SignedAreaOfUnitSquareIsPositiveCounterClockwise) {
   EXPECT_DOUBLE_EQ(ClosedLength(sq), 4.0);
 }
 
-TEST(Polyline, SimplifyKeepsEveryPointWithinEpsilonOfItsEdge) {
+TEST(SketchPolyline, SimplifyKeepsEveryPointWithinEpsilonOfItsEdge) {
   std::mt19937 rng(7);
   std::normal_distribution<double> n(0.0, 0.7);
   auto ring = testing::Ellipse({200, 150}, 120, 70, 900);
@@ -41,7 +41,7 @@ TEST(Polyline, SimplifyKeepsEveryPointWithinEpsilonOfItsEdge) {
   }
 }
 
-TEST(Polyline, SimplifyOfPolygonWithCornersFindsTheCorners) {
+TEST(SketchPolyline, SimplifyOfPolygonWithCornersFindsTheCorners) {
   // A dense square (4 px spacing): the recursive split must keep exactly its 4 corners.
   std::vector<Vec2> dense;
   const Vec2 c[4] = {{10, 10}, {110, 10}, {110, 110}, {10, 110}};
@@ -54,7 +54,7 @@ TEST(Polyline, SimplifyOfPolygonWithCornersFindsTheCorners) {
   EXPECT_NEAR(h, 0.0, 1e-9);
 }
 
-TEST(Polyline, VertexCountFallsAsEpsilonGrowsOnACircle) {
+TEST(SketchPolyline, VertexCountFallsAsEpsilonGrowsOnACircle) {
   // Closed form: a chord of a radius-R circle deviates by R (1 - cos(theta / 2)).
   const double R = 100;
   auto circle = testing::Ellipse({0, 0}, R, R, 3600);
@@ -70,7 +70,7 @@ TEST(Polyline, VertexCountFallsAsEpsilonGrowsOnACircle) {
   }
 }
 
-TEST(Polyline, ResampleClosedHasEqualSpacing) {
+TEST(SketchPolyline, ResampleClosedHasEqualSpacing) {
   auto sq = std::vector<Vec2>{{0, 0}, {100, 0}, {100, 50}, {0, 50}};
   auto r = ResampleClosed(sq, 2.0);
   EXPECT_EQ(r.size(), 150u);
@@ -78,7 +78,7 @@ TEST(Polyline, ResampleClosedHasEqualSpacing) {
   EXPECT_NEAR(ClosedLength(r), 300.0, 1e-9);
 }
 
-TEST(Polyline, FindsAFigureEightCrossing) {
+TEST(SketchPolyline, FindsAFigureEightCrossing) {
   std::vector<Vec2> eight = {{0, 0}, {10, 10}, {10, 0}, {0, 10}};
   auto x = FindSelfCrossing(eight);
   ASSERT_TRUE(x);
@@ -88,7 +88,7 @@ TEST(Polyline, FindsAFigureEightCrossing) {
   EXPECT_FALSE(FindSelfCrossing(sq));
 }
 
-TEST(Polyline, HausdorffOfConcentricCirclesIsRadiusDifference) {
+TEST(SketchPolyline, HausdorffOfConcentricCirclesIsRadiusDifference) {
   auto a = testing::Ellipse({0, 0}, 50, 50, 2000);
   auto b = testing::Ellipse({0, 0}, 53, 53, 2000);
   EXPECT_NEAR(SymmetricHausdorff(a, b), 3.0, 0.01);

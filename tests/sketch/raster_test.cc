@@ -37,7 +37,7 @@ void ExpectSimpleLoop(const Bitmap& b) {
       }
 }
 
-TEST(Raster, OtsuSplitsTwoLevelsBetweenThem) {
+TEST(SketchRaster, OtsuSplitsTwoLevelsBetweenThem) {
   uint32_t h[256] = {};
   h[40] = 1000;
   h[210] = 3000;
@@ -46,7 +46,7 @@ TEST(Raster, OtsuSplitsTwoLevelsBetweenThem) {
   EXPECT_LT(t, 210);
 }
 
-TEST(Raster, ConnectivityNumberMatchesYokoiCases) {
+TEST(SketchRaster, ConnectivityNumberMatchesYokoiCases) {
   auto b = FromRows({
       ".....",
       ".#.#.",
@@ -63,7 +63,7 @@ TEST(Raster, ConnectivityNumberMatchesYokoiCases) {
   EXPECT_EQ(ConnectivityNumber(c, 1, 1), 4);  // crossing
 }
 
-TEST(Raster, HilditchThinsAThickRingToAOnePixelLoopNearItsCentreLine) {
+TEST(SketchRaster, HilditchThinsAThickRingToAOnePixelLoopNearItsCentreLine) {
   testing::Picture p = testing::Blank(200, 200);
   auto ring = testing::Ellipse({100, 100}, 70, 50, 600);
   testing::InkPolyline(p, ring, true, 9.0);
@@ -85,7 +85,7 @@ TEST(Raster, HilditchThinsAThickRingToAOnePixelLoopNearItsCentreLine) {
       }
 }
 
-TEST(Raster, HilditchKeepsTwoPixelLinesAndConnectivity) {
+TEST(SketchRaster, HilditchKeepsTwoPixelLinesAndConnectivity) {
   auto b = FromRows({
       "..........",
       ".########.",
@@ -102,7 +102,7 @@ TEST(Raster, HilditchKeepsTwoPixelLinesAndConnectivity) {
   EXPECT_GE(b.Count(), 14);
 }
 
-TEST(Raster, SpurRemovalDeletesBranchesAndNoiseButKeepsTheLoop) {
+TEST(SketchRaster, SpurRemovalDeletesBranchesAndNoiseButKeepsTheLoop) {
   auto b = FromRows({
       "#...........",
       "....#.......",
@@ -129,7 +129,7 @@ TEST(Raster, SpurRemovalDeletesBranchesAndNoiseButKeepsTheLoop) {
   EXPECT_LE(b.Count(), 20);
 }
 
-TEST(Raster, SpurRemovalOpensOnePixelHolesInTheLine) {
+TEST(SketchRaster, SpurRemovalOpensOnePixelHolesInTheLine) {
   // A loop whose line has a one-pixel bubble at the top: connectivity 2 pixels next to the
   // hole are deleted, the loop stays closed.
   auto b = FromRows({
@@ -143,7 +143,7 @@ TEST(Raster, SpurRemovalOpensOnePixelHolesInTheLine) {
   ExpectSimpleLoop(b);
 }
 
-TEST(Raster, TraceReturnsEveryPixelOfASquareLoopOnce) {
+TEST(SketchRaster, TraceReturnsEveryPixelOfASquareLoopOnce) {
   auto b = FromRows({
       "......",
       ".####.",
@@ -163,7 +163,7 @@ TEST(Raster, TraceReturnsEveryPixelOfASquareLoopOnce) {
   }
 }
 
-TEST(Raster, FillEnclosedFillsTheInsideOnly) {
+TEST(SketchRaster, FillEnclosedFillsTheInsideOnly) {
   auto b = FromRows({
       "#####.",
       "#...#.",
@@ -174,7 +174,7 @@ TEST(Raster, FillEnclosedFillsTheInsideOnly) {
   EXPECT_EQ(b.at(5, 1), 0);
 }
 
-TEST(Raster, AdaptiveBinarizationSurvivesUnevenLightWhereOtsuFails) {
+TEST(SketchRaster, AdaptiveBinarizationSurvivesUnevenLightWhereOtsuFails) {
   testing::Picture p = testing::Blank(256, 256, 235);
   auto ring = testing::Ellipse({128, 128}, 90, 70, 500);
   testing::InkPolyline(p, ring, true, 4.0, 60);

@@ -33,7 +33,7 @@ void Put32(uint8_t* p, uint32_t v) {
   p[0] = v >> 24, p[1] = v >> 16, p[2] = v >> 8, p[3] = v;
 }
 
-TEST(Refusal, EmptyAndBlankSketchesSayNothingWasDrawn) {
+TEST(SketchRefusal, EmptyAndBlankSketchesSayNothingWasDrawn) {
   ExpectError(ContourFromStrokesJson(R"({"width":512,"height":512,"strokes":[]})", {}),
               ErrorCode::kInvalidArgument, "nothing drawn");
   ExpectError(ContourFromStrokesJson(R"({"width":512,"height":512,"strokes":[[[3,4]]]})", {}),
@@ -43,7 +43,7 @@ TEST(Refusal, EmptyAndBlankSketchesSayNothingWasDrawn) {
   ExpectError(ContourFromSketchBytes({}, {}), ErrorCode::kInvalidArgument, "empty");
 }
 
-TEST(Refusal, TooSmallShapeNamesItsArea) {
+TEST(SketchRefusal, TooSmallShapeNamesItsArea) {
   auto tiny = testing::Ellipse({100, 100}, 5, 4, 60);
   tiny.push_back(tiny[0]);
   ExpectError(ContourFromStrokesJson(testing::StrokesJson(512, 512, {tiny}), {}),
@@ -54,7 +54,7 @@ TEST(Refusal, TooSmallShapeNamesItsArea) {
               "too small");
 }
 
-TEST(Refusal, StrokeJsonErrorsSayWhere) {
+TEST(SketchRefusal, StrokeJsonErrorsSayWhere) {
   ExpectError(ContourFromStrokesJson(R"({"width":512,"height":512,"strokes":[[[1,2],[3]]]})", {}),
               ErrorCode::kInvalidArgument, "strokes[0][1]");
   ExpectError(
@@ -75,7 +75,7 @@ TEST(Refusal, StrokeJsonErrorsSayWhere) {
   EXPECT_TRUE(ContourFromStrokesJson(j, {}).ok());
 }
 
-TEST(Refusal, TooManyStrokePointsIsResourceExhausted) {
+TEST(SketchRefusal, TooManyStrokePointsIsResourceExhausted) {
   std::string j = R"({"width":512,"height":512,"strokes":[[)";
   for (int i = 0; i < 100001; ++i) j += (i ? ",[" : "[") + std::to_string(i % 500) + ",1]";
   j += "]]}";
@@ -85,7 +85,7 @@ TEST(Refusal, TooManyStrokePointsIsResourceExhausted) {
   ExpectError(ContourFromStrokesJson(j, small), ErrorCode::kResourceExhausted, "max_input_bytes");
 }
 
-TEST(Refusal, PictureOverThePixelLimitIsRefusedFromTheHeader) {
+TEST(SketchRefusal, PictureOverThePixelLimitIsRefusedFromTheHeader) {
   // A real 64 x 64 PNG whose header claims 5000 x 4000: refused before any pixel buffer exists.
   auto png = testing::EncodePng(testing::Blank(64, 64));
   ASSERT_EQ(std::memcmp(&png[12], "IHDR", 4), 0);
@@ -109,14 +109,14 @@ TEST(Refusal, PictureOverThePixelLimitIsRefusedFromTheHeader) {
   ExpectError(ContourFromImage(Bytes(jpg), {}), ErrorCode::kResourceExhausted, "max_pixels");
 }
 
-TEST(Refusal, InputOverTheByteLimitIsRefused) {
+TEST(SketchRefusal, InputOverTheByteLimitIsRefused) {
   std::vector<uint8_t> big(32u * 1024 * 1024 + 1, 0);
   const uint8_t sig[8] = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
   std::memcpy(big.data(), sig, 8);
   ExpectError(ContourFromImage(Bytes(big), {}), ErrorCode::kResourceExhausted, "max_input_bytes");
 }
 
-TEST(Refusal, CorruptPicturesAreInvalidArgument) {
+TEST(SketchRefusal, CorruptPicturesAreInvalidArgument) {
   testing::Picture p = testing::Blank(128, 128);
   testing::InkPolyline(p, testing::Ellipse({64, 64}, 40, 30, 200), true, 3.0);
   auto png = testing::EncodePng(p);
@@ -132,7 +132,7 @@ TEST(Refusal, CorruptPicturesAreInvalidArgument) {
               "unknown sketch format");
 }
 
-TEST(Refusal, BadOptionsAreInvalidArgument) {
+TEST(SketchRefusal, BadOptionsAreInvalidArgument) {
   ContourOptions o;
   o.epsilon_px = 0.0;
   ExpectError(ContourFromStrokesJson("{}", o), ErrorCode::kInvalidArgument, "epsilon");

@@ -14,7 +14,7 @@ namespace {
 using testing::ReadFile;
 using testing::ReadTruth;
 
-class SampleSketch : public ::testing::TestWithParam<std::string> {
+class SketchSample : public ::testing::TestWithParam<std::string> {
  protected:
   void SetUp() override {
     dir_ = RHEO_SKETCH_SAMPLES;
@@ -47,20 +47,20 @@ class SampleSketch : public ::testing::TestWithParam<std::string> {
   testing::Truth truth_;
 };
 
-TEST_P(SampleSketch, FromStrokesWithinTolerance) {
+TEST_P(SketchSample, FromStrokesWithinTolerance) {
   auto json = ReadFile(dir_ + "/" + GetParam() + ".json");
   ASSERT_TRUE(json);
   Check(ContourFromStrokesJson(*json, ContourOptions{}), "json");
 }
 
-TEST_P(SampleSketch, FromPictureWithinTolerance) {
+TEST_P(SketchSample, FromPictureWithinTolerance) {
   auto png = ReadFile(dir_ + "/" + GetParam() + ".png");
   ASSERT_TRUE(png);
   std::span<const uint8_t> bytes(reinterpret_cast<const uint8_t*>(png->data()), png->size());
   Check(ContourFromImage(bytes, ContourOptions{}), "png");
 }
 
-TEST_P(SampleSketch, ContentDetectionMatchesDirectCalls) {
+TEST_P(SketchSample, ContentDetectionMatchesDirectCalls) {
   for (const char* ext : {".json", ".png"}) {
     auto data = ReadFile(dir_ + "/" + GetParam() + ext);
     ASSERT_TRUE(data);
@@ -71,7 +71,7 @@ TEST_P(SampleSketch, ContentDetectionMatchesDirectCalls) {
   }
 }
 
-TEST_P(SampleSketch, TighterEpsilonGivesMoreVerticesAndStaysWithinIt) {
+TEST_P(SketchSample, TighterEpsilonGivesMoreVerticesAndStaysWithinIt) {
   auto json = ReadFile(dir_ + "/" + GetParam() + ".json");
   ASSERT_TRUE(json);
   ContourOptions fine, coarse;
@@ -86,7 +86,7 @@ TEST_P(SampleSketch, TighterEpsilonGivesMoreVerticesAndStaysWithinIt) {
   EXPECT_LE(SymmetricHausdorff(b->contour.points, truth_.contour), 4.0 + truth_.line_width / 2 + 1);
 }
 
-INSTANTIATE_TEST_SUITE_P(Shared, SampleSketch,
+INSTANTIATE_TEST_SUITE_P(Shared, SketchSample,
                          ::testing::Values("ellipse", "bean", "star5", "letter_c", "fish",
                                            "mitten"));
 

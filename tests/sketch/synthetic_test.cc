@@ -50,7 +50,7 @@ void ExpectWithin(const Result<ContourResult>& r, const std::vector<Vec2>& truth
               r->epsilon_px + lw / 2 + 1.0, r->contour.points.size());
 }
 
-TEST(SyntheticStrokes, NoisyOverlappingStrokesInShuffledDirections) {
+TEST(SketchSyntheticStrokes, NoisyOverlappingStrokesInShuffledDirections) {
   std::mt19937 rng(11);
   auto truth = testing::Star({256, 256}, 180, 110, 5, 1400);
   auto strokes = Strokes(truth, 4, 25, 0.6, rng);
@@ -61,7 +61,7 @@ TEST(SyntheticStrokes, NoisyOverlappingStrokesInShuffledDirections) {
   EXPECT_TRUE(Mentions(r->repairs, "joined strokes")) << "joins are reported";
 }
 
-TEST(SyntheticStrokes, OvershootAtTheCloseIsTrimmed) {
+TEST(SketchSyntheticStrokes, OvershootAtTheCloseIsTrimmed) {
   auto truth = testing::Ellipse({256, 256}, 150, 90, 900);
   std::vector<Vec2> s(truth.begin(), truth.end());
   for (int i = 0; i < 60; ++i) s.push_back(truth[i] + Vec2(0, 3.0 * i / 60));  // runs on past
@@ -70,7 +70,7 @@ TEST(SyntheticStrokes, OvershootAtTheCloseIsTrimmed) {
   EXPECT_NEAR(r->perimeter_px, internal::ClosedLength(truth), 0.02 * internal::ClosedLength(truth));
 }
 
-TEST(SyntheticStrokes, SmallGapIsClosedAndReportedWithWhere) {
+TEST(SketchSyntheticStrokes, SmallGapIsClosedAndReportedWithWhere) {
   auto truth = testing::Ellipse({256, 256}, 150, 90, 1000);
   std::vector<Vec2> s(truth.begin(), truth.end() - 20);  // 2 % of the perimeter missing
   auto r = ContourFromStrokesJson(testing::StrokesJson(512, 512, {s}), ContourOptions{});
@@ -79,7 +79,7 @@ TEST(SyntheticStrokes, SmallGapIsClosedAndReportedWithWhere) {
   EXPECT_TRUE(Mentions(r->repairs, "between (")) << r->repairs[0];
 }
 
-TEST(SyntheticStrokes, GapOverTheLimitIsRefusedWithItsEnds) {
+TEST(SketchSyntheticStrokes, GapOverTheLimitIsRefusedWithItsEnds) {
   auto ring = testing::Ellipse({256, 256}, 150, 90, 1000);
   std::vector<Vec2> s(ring.begin(), ring.end() - 80);  // about 8 % missing
   auto r = ContourFromStrokesJson(testing::StrokesJson(512, 512, {s}), ContourOptions{});
@@ -94,7 +94,7 @@ TEST(SyntheticStrokes, GapOverTheLimitIsRefusedWithItsEnds) {
   EXPECT_TRUE(ContourFromStrokesJson(testing::StrokesJson(512, 512, {s}), lenient).ok());
 }
 
-TEST(SyntheticStrokes, RetracedStretchIsMerged) {
+TEST(SketchSyntheticStrokes, RetracedStretchIsMerged) {
   // One stroke around, then a second stroke retracing 150 points of it with an offset of 1 px.
   std::mt19937 rng(5);
   auto truth = testing::Ellipse({256, 256}, 170, 120, 1200);
@@ -108,7 +108,7 @@ TEST(SyntheticStrokes, RetracedStretchIsMerged) {
       << "the extra stroke is either ignored or merged, and said so";
 }
 
-TEST(SyntheticStrokes, SeveralShapesKeepTheLargestAndNameTheOthers) {
+TEST(SketchSyntheticStrokes, SeveralShapesKeepTheLargestAndNameTheOthers) {
   auto big = testing::Ellipse({300, 300}, 150, 100, 800);
   auto small = testing::Ellipse({60, 60}, 30, 30, 200);
   std::vector<Vec2> b(big.begin(), big.end()), s(small.begin(), small.end());
@@ -120,7 +120,7 @@ TEST(SyntheticStrokes, SeveralShapesKeepTheLargestAndNameTheOthers) {
   EXPECT_TRUE(Mentions(r->warnings, "(30,30)")) << ::testing::PrintToString(r->warnings);
 }
 
-TEST(SyntheticStrokes, FigureEightIsRepairedOrRefusedWithTheCrossing) {
+TEST(SketchSyntheticStrokes, FigureEightIsRepairedOrRefusedWithTheCrossing) {
   // A lemniscate-like curve with a big and a small lobe crossing at (256, 256).
   std::vector<Vec2> eight;
   for (int i = 0; i < 800; ++i) {
@@ -145,7 +145,7 @@ TEST(SyntheticStrokes, FigureEightIsRepairedOrRefusedWithTheCrossing) {
 
 // Pictures.
 
-TEST(SyntheticPictures, ThickLines) {
+TEST(SketchSyntheticPictures, ThickLines) {
   for (double lw : {8.0, 14.0}) {
     Picture p = testing::Blank(512, 512);
     auto truth = testing::Star({256, 256}, 200, 120, 5, 1500);
@@ -156,7 +156,7 @@ TEST(SyntheticPictures, ThickLines) {
   }
 }
 
-TEST(SyntheticPictures, FilledSilhouetteGivesItsEdge) {
+TEST(SketchSyntheticPictures, FilledSilhouetteGivesItsEdge) {
   Picture p = testing::Blank(512, 512);
   auto truth = testing::Star({256, 256}, 200, 120, 5, 1500);
   testing::FillPolygon(p, truth);
@@ -167,7 +167,7 @@ TEST(SyntheticPictures, FilledSilhouetteGivesItsEdge) {
   EXPECT_NEAR(r->area_px2, area, 0.02 * area);
 }
 
-TEST(SyntheticPictures, PhotoWithUnevenLightAndJpeg) {
+TEST(SketchSyntheticPictures, PhotoWithUnevenLightAndJpeg) {
   std::mt19937 rng(21);
   Picture p = testing::Blank(640, 480, 230);
   auto truth = testing::Star({320, 240}, 200, 140, 3, 1500);
@@ -182,7 +182,7 @@ TEST(SyntheticPictures, PhotoWithUnevenLightAndJpeg) {
   EXPECT_EQ(r->kind, SketchKind::kJpeg);
 }
 
-TEST(SyntheticPictures, SmallGapInTheLineIsClosed) {
+TEST(SketchSyntheticPictures, SmallGapInTheLineIsClosed) {
   Picture p = testing::Blank(512, 512);
   auto truth = testing::Ellipse({256, 256}, 180, 120, 1500);
   std::vector<Vec2> open(truth.begin(), truth.end() - 25);  // ~1.7 % gap
@@ -198,7 +198,7 @@ TEST(SyntheticPictures, SmallGapInTheLineIsClosed) {
   EXPECT_NE(e.error().message.find("not closed: gap of"), std::string::npos) << e.error().message;
 }
 
-TEST(SyntheticPictures, OverdrawnDoubleLineGivesOneOutline) {
+TEST(SketchSyntheticPictures, OverdrawnDoubleLineGivesOneOutline) {
   Picture p = testing::Blank(512, 512);
   auto truth = testing::Ellipse({256, 256}, 180, 120, 1500);
   auto second = truth;
@@ -209,7 +209,7 @@ TEST(SyntheticPictures, OverdrawnDoubleLineGivesOneOutline) {
   ExpectWithin(r, truth, 3.0 + 4.3, "png: overdrawn twice, 4 px apart");
 }
 
-TEST(SyntheticPictures, SpursAndSpecksAreIgnored) {
+TEST(SketchSyntheticPictures, SpursAndSpecksAreIgnored) {
   Picture p = testing::Blank(512, 512);
   auto truth = testing::Ellipse({256, 256}, 180, 120, 1500);
   testing::InkPolyline(p, truth, true, 4.0);
@@ -220,7 +220,7 @@ TEST(SyntheticPictures, SpursAndSpecksAreIgnored) {
   ExpectWithin(r, truth, 4.0, "png: spurs and a speck");
 }
 
-TEST(SyntheticPictures, HoleInsideTheOutlineIsIgnoredWithAWarning) {
+TEST(SketchSyntheticPictures, HoleInsideTheOutlineIsIgnoredWithAWarning) {
   Picture p = testing::Blank(512, 512);
   auto truth = testing::Ellipse({256, 256}, 200, 140, 1500);
   testing::InkPolyline(p, truth, true, 4.0);
@@ -233,7 +233,7 @@ TEST(SyntheticPictures, HoleInsideTheOutlineIsIgnoredWithAWarning) {
       << ::testing::PrintToString(r->warnings);
 }
 
-TEST(SyntheticPictures, SeveralShapesKeepTheLargest) {
+TEST(SketchSyntheticPictures, SeveralShapesKeepTheLargest) {
   Picture p = testing::Blank(512, 512);
   auto big = testing::Ellipse({300, 300}, 170, 110, 1500);
   testing::InkPolyline(p, big, true, 4.0);
@@ -243,7 +243,7 @@ TEST(SyntheticPictures, SeveralShapesKeepTheLargest) {
   EXPECT_TRUE(Mentions(r->warnings, "several shapes")) << ::testing::PrintToString(r->warnings);
 }
 
-TEST(SyntheticPictures, LargePictureMatchesTheSmallOneScaled) {
+TEST(SketchSyntheticPictures, LargePictureMatchesTheSmallOneScaled) {
   // 2048 x 2048 with a 16 px line: the same shape as the 512 case, scaled by 4.
   Picture p = testing::Blank(2048, 2048);
   auto truth = testing::Star({1024, 1024}, 800, 480, 5, 4000);
