@@ -55,18 +55,31 @@ TetMesh BoxWithTets(int tets) {
   return *MakeBoxTetMesh(nx, ny, nz, Vec3(0.1, 0.06, 0.08));
 }
 
+// An integrator as the benches name it: the scheme plus the implicit-damping switch.
+struct Method {
+  const char* name;
+  Integrator integrator;
+  double implicit_damping;
+};
+constexpr Method kMethods[] = {
+    {"symplectic-euler", Integrator::kSymplecticEuler, 0.0},
+    {"symplectic+impl.damping", Integrator::kSymplecticEuler, 1.0},
+    {"implicit-euler", Integrator::kImplicitEuler, 0.0},
+};
+
 // ---------------------------------------------------------------------------------------------
 int Speed(int max_tets) {
   std::printf("# speed: one 1 ms tick, object settling on the floor (awake), one core\n");
-  std::printf("%8s %7s %8s %-17s %5s %9s %9s %9s %10s\n", "tets", "nodes", "edges", "integrator",
+  std::printf("%8s %7s %8s %-24s %5s %9s %9s %9s %10s\n", "tets", "nodes", "edges", "integrator",
               "subst", "median_us", "p90_us", "us/ktet", "CG it/tick");
   for (int target : {100, 1000, 5000, 20000, 100000}) {
     if (target > max_tets) break;
     const TetMesh mesh = BoxWithTets(target);
-    for (Integrator integ : {Integrator::kSymplecticEuler, Integrator::kImplicitEuler}) {
+    for (const Method& method : kMethods) {
       Parameters p = FindPreset("organ")->params;
       p.sleep_time = 0.0;
-      auto obj = SimObject::Create(mesh, p, integ);
+      p.implicit_damping = method.implicit_damping;
+      auto obj = SimObject::Create(mesh, p, method.integrator);
       if (!obj.ok()) return 2;
       SimObject& s = **obj;
       s.Translate(Vec3(0, 0.005, 0));
@@ -84,10 +97,9 @@ int Speed(int max_tets) {
         it += r.solver_iterations;
       }
       const double med = Median(us);
-      std::printf("%8zu %7d %8zu %-17s %5.1f %9.1f %9.1f %9.1f %10.1f\n", mesh.tets.size(),
-                  s.model().num_nodes, s.model().edges.size(), IntegratorName(integ),
-                  double(sub) / ticks, med, Percentile(us, 0.9), med / (mesh.tets.size() / 1e3),
-                  double(it) / ticks);
+      std::printf("%8zu %7d %8zu %-24s %5.1f %9.1f %9.1f %9.1f %10.1f\n", mesh.tets.size(),
+                  s.model().num_nodes, s.model().edges.size(), method.name, double(sub) / ticks,
+                  med, Percentile(us, 0.9), med / (mesh.tets.size() / 1e3), double(it) / ticks);
     }
   }
   return 0;
@@ -120,9 +132,11 @@ struct RunResult {
   int64_t restores = 0;
 };
 
-RunResult RunScene(const Scene& sc, Integrator integ, double dt, double t_end,
+RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_end,
                    double cg_tol = -1.0) {
+  const Integrator integ = method.integrator;
   Parameters p = sc.params;
+  p.implicit_damping = method.implicit_damping;
   if (cg_tol > 0) p.cg_tolerance = cg_tol;
   p.max_substeps = 10000;
   auto obj = SimObject::Create(sc.mesh, p, integ);
@@ -225,20 +239,20 @@ int Precision(const std::string& svg) {
   std::printf(
       "# work-precision: error = RMS(x - x_ref)/size at t = 0.5 s; reference = "
       "symplectic Euler, tick 1e-5 s\n");
-  std::printf("%-6s %-17s %9s %9s %12s %10s %8s\n", "scene", "integrator", "dt_s", "substep_s",
+  std::printf("%-6s %-24s %9s %9s %12s %10s %8s\n", "scene", "integrator", "dt_s", "substep_s",
               "error", "cpu_s/s", "restores");
   for (const Scene& sc : Scenes()) {
-    const RunResult ref = RunScene(sc, Integrator::kSymplecticEuler, 1e-5, t_end);
+    const RunResult ref = RunScene(sc, kMethods[0], 1e-5, t_end);
     const double size =
         (**SimObject::Create(sc.mesh, sc.params, Integrator::kSymplecticEuler)).model().size;
-    for (Integrator integ : {Integrator::kSymplecticEuler, Integrator::kImplicitEuler}) {
+    for (const Method& method : kMethods) {
       for (double dt : {4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4}) {
-        const RunResult r = RunScene(sc, integ, dt, t_end);
+        const RunResult r = RunScene(sc, method, dt, t_end);
         const double err = RmsError(r.x, ref.x, size);
         const double ticks = std::llround(t_end / dt);
-        pts.push_back({sc.name, IntegratorName(integ), dt, err, r.cpu / t_end});
-        std::printf("%-6s %-17s %9.2e %9.2e %12.3e %10.4f %8lld\n", sc.name, IntegratorName(integ),
-                    dt, dt * ticks / r.substeps, err, r.cpu / t_end,
+        pts.push_back({sc.name, method.name, dt, err, r.cpu / t_end});
+        std::printf("%-6s %-24s %9.2e %9.2e %12.3e %10.4f %8lld\n", sc.name, method.name, dt,
+                    dt * ticks / r.substeps, err, r.cpu / t_end,
                     static_cast<long long>(r.restores));
       }
     }
@@ -284,8 +298,13 @@ BulletRun RunBullet(const Scene& sc, double dt, double t_end, double stiffness) 
   info.air_density = 0;
   info.water_density = 0;
   info.m_sparsesdf.Initialize();
-  btStaticPlaneShape plane(btVector3(0, 1, 0), 0);
-  btDefaultMotionState ms;
+  // A thick box rather than btStaticPlaneShape: soft-rigid SDF contact needs a convex shape.
+  btBoxShape plane(btVector3(2.0, 0.5, 2.0));
+  plane.setMargin(0.001);
+  btTransform ground_pose;
+  ground_pose.setIdentity();
+  ground_pose.setOrigin(btVector3(0, -0.5, 0));
+  btDefaultMotionState ms(ground_pose);
   btRigidBody ground(btRigidBody::btRigidBodyConstructionInfo(0, &ms, &plane));
   ground.setFriction(sc.params.friction);
   world.addRigidBody(&ground);
@@ -304,7 +323,8 @@ BulletRun RunBullet(const Scene& sc, double dt, double t_end, double stiffness) 
   sb->m_cfg.kDF = sc.params.friction;
   sb->m_cfg.kDP = 0.01;
   sb->m_cfg.collisions = btSoftBody::fCollision::SDF_RS;
-  sb->setTotalMass(mass, false);  // no faces: by node, not by area
+  sb->getCollisionShape()->setMargin(0.002);  // default 0.25 m is larger than the object
+  sb->setTotalMass(mass, false);              // no faces: by node, not by area
   sb->generateBendingConstraints(2, sb->m_materials[0]);
   world.addSoftBody(sb);
   std::vector<int> top;
@@ -348,14 +368,15 @@ int Bullet() {
   std::printf("%-6s %6s %-26s %10s %12s %10s\n", "scene", "tets", "engine", "median_us", "error",
               "ratio");
   for (const Scene& sc : Scenes()) {
-    const RunResult ref = RunScene(sc, Integrator::kSymplecticEuler, 1e-5, t_end);
+    const RunResult ref = RunScene(sc, kMethods[0], 1e-5, t_end);
     const double size =
         (**SimObject::Create(sc.mesh, sc.params, Integrator::kSymplecticEuler)).model().size;
     double rheo_med = 0.0;
-    for (Integrator integ : {Integrator::kSymplecticEuler, Integrator::kImplicitEuler}) {
+    for (const Method& method : kMethods) {
       // Median tick time measured separately from the error run.
       Parameters p = sc.params;
-      auto obj = SimObject::Create(sc.mesh, p, integ);
+      p.implicit_damping = method.implicit_damping;
+      auto obj = SimObject::Create(sc.mesh, p, method.integrator);
       SimObject& s = **obj;
       s.Translate(Vec3(0, sc.drop, 0));
       std::vector<double> us;
@@ -366,11 +387,11 @@ int Bullet() {
             std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0)
                 .count());
       }
-      const RunResult r = RunScene(sc, integ, dt, t_end);
+      const RunResult r = RunScene(sc, method, dt, t_end);
       const double med = Median(us);
-      if (integ == Integrator::kSymplecticEuler) rheo_med = med;
+      if (&method == &kMethods[0]) rheo_med = med;
       std::printf("%-6s %6zu %-26s %10.1f %12.3e %10.2f\n", sc.name, sc.mesh.tets.size(),
-                  IntegratorName(integ), med, RmsError(r.x, ref.x, size), med / rheo_med);
+                  method.name, med, RmsError(r.x, ref.x, size), med / rheo_med);
     }
     for (double kl : {0.1, 0.5, 1.0}) {
       const BulletRun b = RunBullet(sc, dt, t_end, kl);
@@ -393,6 +414,20 @@ int main(int argc, char** argv) {
   if (mode == "precision") return Precision(argc > 2 ? argv[2] : "sim_work_precision.svg");
 #ifdef RHEO_HAVE_BULLET
   if (mode == "bullet") return Bullet();
+  if (mode == "bullet-check") {
+    // Where Bullet's object ends up after a short drop (floor contact sanity check).
+    const Scene sc = Scenes()[0];
+    for (double t : {0.05, 0.1, 0.3}) {
+      const BulletRun b = RunBullet(sc, 1e-3, t, 0.5);
+      double lo = 1e30, hi = -1e30;
+      for (const Vec3& x : b.x) {
+        lo = std::min(lo, x.y());
+        hi = std::max(hi, x.y());
+      }
+      std::printf("t=%.2f lowest %.4f highest %.4f\n", t, lo, hi);
+    }
+    return 0;
+  }
 #else
   if (mode == "bullet") {
     std::fprintf(stderr, "sim_bench: built without Bullet (libbullet-dev)\n");

@@ -29,6 +29,8 @@ namespace {
 
 void EdgeForces(const Model& m, const Parameters& p, bool nonlinear, State& s, double h,
                 bool advance_a, bool linearise) {
+  const bool diag_damping = !linearise && p.implicit_damping > 0.5;
+  if (diag_damping) std::fill(s.damp_diag.begin(), s.damp_diag.end(), 0.0);
   const double k_v = p.k_v;
   const double c_v = p.c_v;
   const double ratio = p.voigt_ratio;
@@ -60,6 +62,11 @@ void EdgeForces(const Model& m, const Parameters& p, bool nonlinear, State& s, d
     f[i] += tension * e;
     f[j] -= tension * e;
     s.tension[k] = tension;
+    if (diag_damping) {
+      const double c_eff = c_d / (c_v + c_d) * c_v;
+      s.damp_diag[i] += c_eff;
+      s.damp_diag[j] += c_eff;
+    }
     if (linearise) {
       const double share = c_d / (c_v + c_d);
       s.edge_dir[k] = e;

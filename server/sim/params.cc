@@ -10,7 +10,7 @@ namespace {
 
 using P = Parameters;
 
-constexpr std::array<ParameterInfo, 23> kTable = {{
+constexpr std::array<ParameterInfo, 24> kTable = {{
     {"density", &P::density, 1.0, 1e5, "kg/m^3", "material density (lumped masses)"},
     {"k_v", &P::k_v, 0.0, 1e7, "N/m", "Voigt spring elasticity per edge (eq. 2)"},
     {"c_v", &P::c_v, 1e-6, 1e6, "N s/m", "Voigt damper viscosity per edge (eq. 2)"},
@@ -28,6 +28,8 @@ constexpr std::array<ParameterInfo, 23> kTable = {{
     {"floor_height", &P::floor_height, -1e3, 1e3, "m", "floor plane y"},
     {"friction", &P::friction, 0.0, 10.0, "-", "Coulomb friction coefficient with the floor"},
     {"max_substeps", &P::max_substeps, 1.0, 10000.0, "-", "cap on explicit substeps per tick"},
+    {"implicit_damping", &P::implicit_damping, 0.0, 1.0, "-",
+     "1 = edge damper diagonal implicit in symplectic Euler"},
     {"implicit_substeps", &P::implicit_substeps, 1.0, 1000.0, "-",
      "substeps per tick of the implicit integrator"},
     {"cg_tolerance", &P::cg_tolerance, 1e-14, 1.0, "-", "relative CG residual to stop at"},

@@ -13,7 +13,8 @@ namespace rheo::sim {
 /// Time integration schemes.
 enum class Integrator {
   /// Semi-implicit (symplectic) Euler with as many substeps per tick as the explicit stability
-  /// bound asks for (capped by `max_substeps`). Cheapest per substep; the default for soft objects.
+  /// bound asks for (capped by `max_substeps`); the edge dampers' diagonal is implicit unless
+  /// `implicit_damping` is 0. Cheapest per substep; the default for soft objects.
   kSymplecticEuler,
   /// Linearised backward Euler (one Newton step per substep), solved matrix-free by conjugate
   /// gradients warm-started from the previous tick. Unconditionally stable for the linearised
@@ -52,6 +53,8 @@ struct Parameters {
   double friction = 0.6;       // Coulomb friction coefficient with the floor [-]
   // Numerics.
   double max_substeps = 64;       // cap on substeps per tick [-]
+  double implicit_damping = 0.0;  // 1: symplectic Euler treats the edge dampers' diagonal
+                                  // implicitly, lifting the damping step bound [-]
   double implicit_substeps = 1;   // substeps per tick of the implicit integrator [-]
   double cg_tolerance = 1e-5;     // relative residual at which CG stops [-]
   double cg_max_iterations = 60;  // [-]

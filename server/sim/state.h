@@ -21,8 +21,9 @@ struct State {
   std::vector<Vec3> floor_reaction;  // floor force on each node during the last tick (n) [N]
 
   // Scratch, sized once.
-  std::vector<Vec3> f;         // force accumulator (n) [N]
-  std::vector<Vec3> vol_grad;  // gradient of the enclosed volume per node (n) [m^2]
+  std::vector<Vec3> f;            // force accumulator (n) [N]
+  std::vector<Vec3> vol_grad;     // gradient of the enclosed volume per node (n) [m^2]
+  std::vector<double> damp_diag;  // sum of the edge damping coefficients at each node (n) [N s/m]
   // Per-edge linearisation for the implicit integrator.
   std::vector<Vec3> edge_dir;        // unit edge vectors (e)
   std::vector<double> edge_axial_k;  // h^2 k_eff along the edge (e) [N s/m]
