@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <variant>
 
 #include "mesh/internal.h"
 
@@ -26,6 +27,45 @@ double SignedArea(const std::vector<Vec2>& p) {
 bool SegmentsIntersect(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& d) {
   return CGAL::do_intersect(K::Segment_2(K::Point_2(a.x(), a.y()), K::Point_2(b.x(), b.y())),
                             K::Segment_2(K::Point_2(c.x(), c.y()), K::Point_2(d.x(), d.y())));
+}
+
+// Cuts loops a pen's jitter leaves (a segment crossing one a few steps later), when the loop is
+// short: at most `max_loop` long [m]. Big crossings (a figure eight) stay and are refused later.
+std::vector<Vec2> RemoveSmallLoops(std::vector<Vec2> p, double max_loop) {
+  constexpr size_t kWindow = 16;  // segments ahead that a small loop may span
+  for (size_t i = 0; i + 2 < p.size();) {
+    const size_t n = p.size();
+    bool cut = false;
+    for (size_t d = 2; d <= kWindow && d + 1 < n && !cut; ++d) {
+      const size_t j = (i + d) % n;
+      if (j < i) break;  // loops across the start are left to the general check
+      const K::Segment_2 si(K::Point_2(p[i].x(), p[i].y()), K::Point_2(p[i + 1].x(), p[i + 1].y()));
+      const K::Segment_2 sj(K::Point_2(p[j].x(), p[j].y()),
+                            K::Point_2(p[(j + 1) % n].x(), p[(j + 1) % n].y()));
+      const auto x = CGAL::intersection(si, sj);
+      if (!x) continue;
+      K::Point_2 q;
+      if (const K::Point_2* pt = boost::get<K::Point_2>(&*x))
+        q = *pt;
+      else
+        q = boost::get<K::Segment_2>(*x).source();
+      const Vec2 c(q.x(), q.y());
+      double loop = (p[i + 1] - c).norm() + (c - p[j]).norm();  // the part that would be cut
+      for (size_t k = i + 1; k < j; ++k) loop += (p[k + 1] - p[k]).norm();
+      if (loop > max_loop) continue;
+      // Keep p[0..i], the crossing point, p[j+1..].
+      std::vector<Vec2> out(p.begin(), p.begin() + static_cast<long>(i) + 1);
+      out.emplace_back(q.x(), q.y());
+      out.insert(out.end(), p.begin() + static_cast<long>(j) + 1, p.end());
+      std::vector<Vec2> dedup;
+      for (const Vec2& v : out)
+        if (dedup.empty() || dedup.back() != v) dedup.push_back(v);
+      p.swap(dedup);
+      cut = true;
+    }
+    if (!cut) ++i;
+  }
+  return p;
 }
 
 }  // namespace
@@ -60,8 +100,16 @@ Result<std::vector<Vec2>> ContourToMetres(const Polygon2& contour_px, double pix
   return out;
 }
 
-Result<std::vector<Vec2>> ResampleContour(const std::vector<Vec2>& polygon, double spacing,
+Result<std::vector<Vec2>> ResampleContour(const std::vector<Vec2>& input, double spacing,
                                           double pixel_size) {
+  std::vector<Vec2> polygon = input;
+  if (!IsSimplePolygon(polygon)) {
+    double perimeter = 0;
+    for (size_t i = 0; i < input.size(); ++i)
+      perimeter += (input[(i + 1) % input.size()] - input[i]).norm();
+    polygon = RemoveSmallLoops(input, 0.05 * perimeter);  // loops up to 5 % of the outline
+    if (polygon.size() < 3) polygon = input;
+  }
   const size_t n = polygon.size();
   std::vector<double> arc(n + 1, 0.0);  // arc length at each vertex [m]
   for (size_t i = 0; i < n; ++i) arc[i + 1] = arc[i] + (polygon[(i + 1) % n] - polygon[i]).norm();

@@ -8,6 +8,7 @@
 #include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -108,10 +109,9 @@ Result<TetMesh> BuildColumns(const Mesh2& mesh2, const std::vector<double>& heig
   std::vector<int32_t> first(n), count(n);
   int64_t num_vertices = 0;
   for (size_t v = 0; v < n; ++v) {
-    count[v] =
-        mesh2.on_contour[v]
-            ? 1
-            : 1 + std::max<int32_t>(1, static_cast<int32_t>(std::lround(2 * heights[v] / layer)));
+    const int32_t m =
+        std::max<int32_t>(1, static_cast<int32_t>(std::lround(2 * heights[v] / layer)));
+    count[v] = mesh2.on_contour[v] ? 1 : 1 + m;
     first[v] = static_cast<int32_t>(num_vertices);
     num_vertices += count[v];
   }

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "common/tet_mesh_io.h"
+#include "mesh/internal.h"
 #include "mesh/mesh.h"
 #include "test_polygons.h"
 
@@ -82,6 +83,23 @@ TEST(MeshSolid, RejectsBadInput) {
       << bowtie.error().message;
   opt.resolution = -1;
   EXPECT_FALSE(BuildSolid(testing::Ellipse(100, 50, 30), opt).ok());
+}
+
+TEST(MeshSolid, PenJitterLoopsAreCutBigCrossingsRefused) {
+  // An ellipse whose outline makes a tiny loop (a zigzag 1 px back) halfway round.
+  Polygon2 p = testing::Ellipse(200, 120, 40);
+  const Vec2 a = p.points[10], b = p.points[11];
+  const Vec2 t = (b - a).normalized(), n(-t.y(), t.x());
+  // a -> X1 -> X2 -> b with X1 ahead of X2: segments a-X1 and X2-b cross.
+  p.points.insert(p.points.begin() + 11,
+                  {a + 0.7 * (b - a) + 0.5 * n, a + 0.3 * (b - a) + 0.5 * n});
+  ASSERT_FALSE(internal::IsSimplePolygon(p.points));
+  MeshOptions opt;
+  opt.resolution = 0.005;  // finer than the input spacing: the outline is used as drawn
+  auto r = BuildSolid(p, opt);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_TRUE(r->quality.valid);
+  EXPECT_EQ(r->contour.size(), 41u);  // the two loop points replaced by the crossing point
 }
 
 TEST(MeshSolid, LimitsAreNamed) {
