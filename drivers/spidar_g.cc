@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <thread>
 
 namespace rheo::drivers {
 namespace {
@@ -234,8 +235,14 @@ void SpidarG::SafeStop() {
   if (!open_) return;
   // Wait at most a little longer than one exchange can take; if the loop holds the link that
   // long, its own exchange is about to end and every later one sends minimum tension anyway.
-  std::unique_lock lock(io_mutex_, std::defer_lock);
-  if (!lock.try_lock_for(std::chrono::microseconds(2500))) return;
+  // try_lock in a loop rather than timed_mutex: ThreadSanitizer does not see timed locks.
+  std::unique_lock lock(io_mutex_, std::try_to_lock);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::microseconds(2500);
+  while (!lock.owns_lock()) {
+    if (std::chrono::steady_clock::now() > deadline) return;
+    std::this_thread::yield();
+    lock.try_lock();
+  }
   // The counts read here are dropped: counts_ belongs to the loop thread, and the link keeps
   // its own unwrapping state, so the loop's next exchange is still continuous.
   uint32_t buttons = 0;

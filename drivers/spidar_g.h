@@ -67,7 +67,7 @@ class SpidarG final : public HapticDevice {
   DeviceStatus status_;
   DeviceInfo info_;
 
-  std::timed_mutex io_mutex_;                // serialises link_ between loop and SafeStop
+  std::mutex io_mutex_;                      // serialises link_ between loop and SafeStop
   std::atomic<bool> stop_requested_{false};  // set by SafeStop, folded into faults by the loop
   std::atomic<bool> open_{false};
   std::array<int16_t, kSpidarStrings> command_{};       // next command [digits]
