@@ -6,17 +6,21 @@
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "rheo/v1/daemon.grpc.pb.h"
 #include "rheo/v1/frames.grpc.pb.h"
+#include "rheo/v1/objects.grpc.pb.h"
+#include "rheo/v1/scene.grpc.pb.h"
 
 namespace {
 
 struct Global {
   std::string server = "127.0.0.1:50051";
-  double timeout_s = 5.0;
+  double timeout_s = 0.0;  // 0: 5 s for quick calls, 300 s for object creation
 };
 
 const char* CodeName(grpc::StatusCode c) {
@@ -65,9 +69,10 @@ std::shared_ptr<grpc::Channel> Connect(const Global& g) {
   return grpc::CreateCustomChannel(g.server, grpc::InsecureChannelCredentials(), args);
 }
 
-void SetDeadline(grpc::ClientContext& ctx, const Global& g) {
+void SetDeadline(grpc::ClientContext& ctx, const Global& g, double default_s = 5.0) {
+  const double t = g.timeout_s > 0 ? g.timeout_s : default_s;
   ctx.set_deadline(std::chrono::system_clock::now() +
-                   std::chrono::milliseconds(static_cast<int64_t>(g.timeout_s * 1000)));
+                   std::chrono::milliseconds(static_cast<int64_t>(t * 1000)));
 }
 
 void PrintPercentiles(const char* name, const rheo::v1::Percentiles& p) {
@@ -75,7 +80,7 @@ void PrintPercentiles(const char* name, const rheo::v1::Percentiles& p) {
               p.p50_us(), p.p99_us(), p.p999_us(), p.max_us());
 }
 
-int Status(const Global& g, bool json) {
+int ShowStatus(const Global& g, bool json) {
   auto stub = rheo::v1::DaemonService::NewStub(Connect(g));
   grpc::ClientContext ctx;
   SetDeadline(ctx, g);
@@ -133,13 +138,309 @@ int Health(const Global& g) {
   return r.status() == grpc::health::v1::HealthCheckResponse::SERVING ? 0 : 1;
 }
 
+bool ReadFile(const std::string& path, std::string& out) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return false;
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  out = ss.str();
+  return true;
+}
+
+// A sketch file: stroke JSON, a contour JSON ({"contour": [[x, y], ...]}) or a PNG/JPEG picture.
+bool LoadSketch(const std::string& path, rheo::v1::Sketch* sketch) {
+  std::string data;
+  if (!ReadFile(path, data)) {
+    std::cerr << "INVALID_ARGUMENT: cannot read " << path << "\n";
+    return false;
+  }
+  size_t first = data.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && data[first] == '{') {
+    if (data.find("\"strokes\"") == std::string::npos &&
+        data.find("\"contour\"") != std::string::npos) {
+      // Contour JSON: the numbers of the "contour" array, pairwise.
+      size_t start = data.find('[', data.find("\"contour\""));
+      size_t depth = 0, pos = start;
+      std::string nums;
+      for (; pos < data.size(); ++pos) {
+        char c = data[pos];
+        if (c == '[') ++depth;
+        if (c == ']' && --depth == 0) break;
+        nums += (c == '[' || c == ']' || c == ',') ? ' ' : c;
+      }
+      std::istringstream in(nums);
+      double x, y;
+      while (in >> x >> y) {
+        auto* p = sketch->mutable_contour()->add_points();
+        p->set_x(x);
+        p->set_y(y);
+      }
+    } else {
+      sketch->set_strokes_json(data);
+    }
+  } else {
+    sketch->set_image(data);
+  }
+  return true;
+}
+
+int ObjectCreate(const Global& g, const std::string& file, const std::string& name,
+                 const rheo::v1::ContourOptions& co, const rheo::v1::MeshOptions& mo,
+                 const std::string& background, bool add, bool json) {
+  rheo::v1::CreateObjectRequest req;
+  if (!LoadSketch(file, req.mutable_sketch())) return 3;
+  if (!background.empty() &&
+      !ReadFile(background, *req.mutable_sketch()->mutable_background_image())) {
+    std::cerr << "INVALID_ARGUMENT: cannot read " << background << "\n";
+    return 3;
+  }
+  req.set_name(name);
+  *req.mutable_contour_options() = co;
+  *req.mutable_mesh_options() = mo;
+  req.set_add_to_scene(add);
+  auto stub = rheo::v1::ObjectService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g, 300.0);
+  auto reader = stub->CreateObject(&ctx, req);
+  rheo::v1::CreateObjectProgress p;
+  rheo::v1::Object object;
+  while (reader->Read(&p)) {
+    if (p.has_object()) object = p.object();
+    if (!json)
+      std::fprintf(stderr, "%s %-15s %5.1f %%\n", p.job_id().c_str(), p.stage().c_str(),
+                   100 * p.fraction());
+  }
+  grpc::Status s = reader->Finish();
+  if (!s.ok()) return Fail(s);
+  if (json) {
+    std::cout << ToJson(object, true);
+  } else {
+    const auto& m = object.mesh();
+    std::printf(
+        "%s  %s: %u vertices, %u tetrahedra, %u surface triangles, volume %.3g m^3, "
+        "min dihedral %.1f deg, watertight %s\n",
+        object.id().c_str(), object.name().c_str(), m.vertex_count(), m.tetrahedron_count(),
+        m.surface_triangle_count(), m.volume(), m.min_dihedral_deg(),
+        m.watertight() ? "yes" : "no");
+  }
+  return 0;
+}
+
+int ObjectList(const Global& g, bool json) {
+  auto stub = rheo::v1::ObjectService::NewStub(Connect(g));
+  std::string token;
+  do {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx, g);
+    rheo::v1::ListObjectsRequest req;
+    req.set_page_token(token);
+    rheo::v1::ListObjectsResponse resp;
+    grpc::Status s = stub->ListObjects(&ctx, req, &resp);
+    if (!s.ok()) return Fail(s);
+    for (const auto& o : resp.objects()) {
+      if (json) {
+        std::cout << ToJson(o, false) << "\n";
+      } else {
+        std::printf("%s  %-24s %8u tets  %.3g m^3\n", o.id().c_str(), o.name().c_str(),
+                    o.mesh().tetrahedron_count(), o.mesh().volume());
+      }
+    }
+    token = resp.next_page_token();
+  } while (!token.empty());
+  return 0;
+}
+
+int ObjectGet(const Global& g, const std::string& id) {
+  auto stub = rheo::v1::ObjectService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g);
+  rheo::v1::GetObjectRequest req;
+  req.set_id(id);
+  rheo::v1::Object o;
+  grpc::Status s = stub->GetObject(&ctx, req, &o);
+  if (!s.ok()) return Fail(s);
+  std::cout << ToJson(o, true);
+  return 0;
+}
+
+int ObjectDelete(const Global& g, const std::string& id) {
+  auto stub = rheo::v1::ObjectService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g);
+  rheo::v1::DeleteObjectRequest req;
+  req.set_id(id);
+  rheo::v1::DeleteObjectResponse r;
+  grpc::Status s = stub->DeleteObject(&ctx, req, &r);
+  return s.ok() ? 0 : Fail(s);
+}
+
+int ObjectExport(const Global& g, const std::string& id, const std::string& format,
+                 const std::string& out_path) {
+  rheo::v1::ExportFormat f;
+  std::string upper = "EXPORT_FORMAT_";
+  for (char c : format) upper += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  if (!rheo::v1::ExportFormat_Parse(upper, &f)) {
+    std::cerr
+        << "INVALID_ARGUMENT: --format must be vtu, obj, ply, stl, svg, sketch or background\n";
+    return 3;
+  }
+  auto stub = rheo::v1::ObjectService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g);
+  rheo::v1::ExportObjectRequest req;
+  req.set_id(id);
+  req.set_format(f);
+  auto reader = stub->ExportObject(&ctx, req);
+  std::string data;
+  rheo::v1::ExportChunk c;
+  while (reader->Read(&c)) data += c.data();
+  grpc::Status s = reader->Finish();
+  if (!s.ok()) return Fail(s);
+  if (out_path.empty() || out_path == "-") {
+    std::cout << data;
+  } else {
+    std::ofstream out(out_path, std::ios::binary);
+    out << data;
+    if (!out) {
+      std::cerr << "cannot write " << out_path << "\n";
+      return 1;
+    }
+  }
+  return 0;
+}
+
+int Contour(const Global& g, const std::string& file, const rheo::v1::ContourOptions& co) {
+  rheo::v1::ExtractContourRequest req;
+  if (!LoadSketch(file, req.mutable_sketch())) return 3;
+  *req.mutable_options() = co;
+  auto stub = rheo::v1::ObjectService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g);
+  rheo::v1::ContourReport r;
+  grpc::Status s = stub->ExtractContour(&ctx, req, &r);
+  if (!s.ok()) return Fail(s);
+  std::cout << ToJson(r, true);
+  return 0;
+}
+
+// "name=value" pairs into Parameter messages; false (with a message) on a malformed pair.
+bool ParseAssignments(const std::vector<std::string>& items,
+                      google::protobuf::RepeatedPtrField<rheo::v1::Parameter>* out) {
+  for (const std::string& item : items) {
+    size_t eq = item.find('=');
+    char* end = nullptr;
+    double v = eq == std::string::npos ? 0 : std::strtod(item.c_str() + eq + 1, &end);
+    if (eq == std::string::npos || eq == 0 || end == item.c_str() + eq + 1 || *end != '\0') {
+      std::cerr << "INVALID_ARGUMENT: '" << item << "' is not name=value (e.g. k_v=200)\n";
+      return false;
+    }
+    auto* p = out->Add();
+    p->set_name(item.substr(0, eq));
+    p->set_value(v);
+  }
+  return true;
+}
+
+int SceneShow(const Global& g) {
+  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g);
+  rheo::v1::Scene scene;
+  grpc::Status s = stub->GetScene(&ctx, {}, &scene);
+  if (!s.ok()) return Fail(s);
+  std::cout << ToJson(scene, true);
+  return 0;
+}
+
+int SceneAdd(const Global& g, const std::string& id, const std::string& preset,
+             const std::string& integrator, const std::vector<double>& at,
+             const std::vector<std::string>& sets) {
+  rheo::v1::AddToSceneRequest req;
+  req.set_object_id(id);
+  req.set_preset(preset);
+  if (integrator == "explicit") req.set_integrator(rheo::v1::INTEGRATOR_SYMPLECTIC_EULER);
+  if (integrator == "implicit") req.set_integrator(rheo::v1::INTEGRATOR_IMPLICIT);
+  if (at.size() == 3) {
+    req.mutable_position()->set_x(at[0]);
+    req.mutable_position()->set_y(at[1]);
+    req.mutable_position()->set_z(at[2]);
+  }
+  if (!ParseAssignments(sets, req.mutable_overrides())) return 3;
+  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g, 30.0);
+  rheo::v1::SceneObject o;
+  grpc::Status s = stub->AddToScene(&ctx, req, &o);
+  if (!s.ok()) return Fail(s);
+  std::printf("instance %u: %s as %s\n", o.instance_id(), o.object_id().c_str(),
+              o.preset().c_str());
+  return 0;
+}
+
+int SceneRemove(const Global& g, uint32_t instance) {
+  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g);
+  rheo::v1::RemoveFromSceneRequest req;
+  req.set_instance_id(instance);
+  rheo::v1::RemoveFromSceneResponse r;
+  grpc::Status s = stub->RemoveFromScene(&ctx, req, &r);
+  return s.ok() ? 0 : Fail(s);
+}
+
+int SceneControl(const Global& g, rheo::v1::RunCommand cmd) {
+  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g);
+  rheo::v1::ControlRequest req;
+  req.set_command(cmd);
+  rheo::v1::ControlResponse r;
+  grpc::Status s = stub->Control(&ctx, req, &r);
+  if (!s.ok()) return Fail(s);
+  std::printf("%s at t = %.3f s\n", r.paused() ? "paused" : "running", r.sim_time());
+  return 0;
+}
+
+int ParamList(const Global& g, uint32_t instance) {
+  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g);
+  rheo::v1::ListParametersRequest req;
+  req.set_instance_id(instance);
+  rheo::v1::ListParametersResponse r;
+  grpc::Status s = stub->ListParameters(&ctx, req, &r);
+  if (!s.ok()) return Fail(s);
+  for (const auto& p : r.parameters())
+    std::printf("%-18s %12.6g %-10s [%g, %g]  %s\n", p.name().c_str(), p.value(), p.unit().c_str(),
+                p.min(), p.max(), p.description().c_str());
+  std::printf("presets:");
+  for (const auto& p : r.presets()) std::printf(" %s", p.c_str());
+  std::printf("\n");
+  return 0;
+}
+
+int ParamSet(const Global& g, uint32_t instance, const std::string& preset,
+             const std::vector<std::string>& sets) {
+  rheo::v1::SetParametersRequest req;
+  req.set_instance_id(instance);
+  req.set_preset(preset);
+  if (!ParseAssignments(sets, req.mutable_parameters())) return 3;
+  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g);
+  rheo::v1::SetParametersResponse r;
+  grpc::Status s = stub->SetParameters(&ctx, req, &r);
+  return s.ok() ? 0 : Fail(s);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   Global g;
   CLI::App app{"rheoctl: talk to a running rheod"};
   app.add_option("--server", g.server, "rheod address host:port")->capture_default_str();
-  app.add_option("--timeout", g.timeout_s, "deadline of each call [s]")->capture_default_str();
+  app.add_option("--timeout", g.timeout_s,
+                 "deadline of each call [s] (default 5, object create 300)");
   app.require_subcommand(1);
 
   bool json = false;
@@ -157,13 +458,95 @@ int main(int argc, char** argv) {
 
   auto* health = app.add_subcommand("health", "standard gRPC health check");
 
+  std::string file, name, id, format = "vtu", out_path, background;
+  bool add = false;
+  rheo::v1::ContourOptions co;
+  rheo::v1::MeshOptions mo;
+  double epsilon = 0, thickness = 0, resolution = 0, pixel_size = 0;
+  auto* object = app.add_subcommand("object", "stored objects made from sketches");
+  object->require_subcommand(1);
+  auto* create = object->add_subcommand(
+      "create", "sketch (JSON strokes, contour JSON, PNG, JPEG) -> stored solid");
+  create->add_option("FILE", file, "sketch file")->required()->check(CLI::ExistingFile);
+  create->add_option("--name", name, "label");
+  create->add_option("--epsilon", epsilon, "vectorization tolerance [px]");
+  create->add_option("--thickness", thickness, "elevation scale (default 1)");
+  create->add_option("--resolution", resolution, "target edge length [m]");
+  create->add_option("--pixel-size", pixel_size, "size of a sketch pixel [m/px]");
+  create->add_option("--background", background, "background photo to store with the object")
+      ->check(CLI::ExistingFile);
+  create->add_flag("--add", add, "add the object to the scene when stored");
+  create->add_flag("--json", json, "print the Object as JSON");
+  auto* list = object->add_subcommand("list", "stored objects, newest first");
+  list->add_flag("--json", json, "one JSON line per object");
+  auto* get = object->add_subcommand("get", "one object as JSON");
+  get->add_option("ID", id)->required();
+  auto* del = object->add_subcommand("delete", "delete a stored object");
+  del->add_option("ID", id)->required();
+  auto* exp = object->add_subcommand("export", "write an object's mesh, sketch or picture");
+  exp->add_option("ID", id)->required();
+  exp->add_option("--format", format, "vtu, obj, ply, stl, svg, sketch, background")
+      ->capture_default_str();
+  exp->add_option("--out", out_path, "output file (default stdout)");
+  std::string preset, integrator;
+  std::vector<double> at;
+  std::vector<std::string> sets;
+  uint32_t instance = 0;
+  auto* scene = app.add_subcommand("scene", "what is simulated, and run control");
+  scene->require_subcommand(1);
+  auto* scene_show = scene->add_subcommand("show", "objects in the scene with their parameters");
+  auto* scene_add = scene->add_subcommand("add", "add a stored object to the scene");
+  scene_add->add_option("ID", id, "stored object id")->required();
+  scene_add->add_option("--preset", preset, "soft-jelly, hard-jelly, clay, organ");
+  scene_add->add_option("--integrator", integrator, "explicit or implicit (default: the preset's)")
+      ->check(CLI::IsMember({"explicit", "implicit"}));
+  scene_add->add_option("--at", at, "centre of the rest shape: x y z [m]")->expected(3);
+  scene_add->add_option("--set", sets, "parameter overrides name=value");
+  auto* scene_remove = scene->add_subcommand("remove", "remove an instance from the scene");
+  scene_remove->add_option("INSTANCE", instance)->required();
+  auto* pause = scene->add_subcommand("pause", "stop simulated time (the loop keeps ticking)");
+  auto* resume = scene->add_subcommand("resume", "restart simulated time");
+  auto* reset = scene->add_subcommand("reset", "every object back to its rest shape, time 0");
+  auto* step = scene->add_subcommand("step", "advance a paused scene by one tick");
+  auto* param = app.add_subcommand("param", "material parameters (take effect on the next tick)");
+  param->require_subcommand(1);
+  auto* param_list = param->add_subcommand("list", "parameters with units and ranges, presets");
+  param_list->add_option("INSTANCE", instance, "scene instance (0: the default preset)");
+  auto* param_set = param->add_subcommand("set", "set parameters of one instance (0: all)");
+  param_set->add_option("INSTANCE", instance)->required();
+  param_set->add_option("ASSIGNMENTS", sets, "name=value ...");
+  param_set->add_option("--preset", preset, "apply a preset first");
+
+  auto* contour = app.add_subcommand("contour", "extract the contour of a sketch (nothing stored)");
+  contour->add_option("FILE", file, "sketch file")->required()->check(CLI::ExistingFile);
+  contour->add_option("--epsilon", epsilon, "vectorization tolerance [px]");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
-  if (*status) return Status(g, json);
+  if (*status) return ShowStatus(g, json);
   if (*watch) return Watch(g, rate, count, positions);
   if (*health) return Health(g);
+  co.set_epsilon_px(epsilon);
+  mo.set_thickness(thickness);
+  mo.set_resolution(resolution);
+  mo.set_pixel_size(pixel_size);
+  if (*create) return ObjectCreate(g, file, name, co, mo, background, add, json);
+  if (*list) return ObjectList(g, json);
+  if (*get) return ObjectGet(g, id);
+  if (*del) return ObjectDelete(g, id);
+  if (*exp) return ObjectExport(g, id, format, out_path);
+  if (*contour) return Contour(g, file, co);
+  if (*scene_show) return SceneShow(g);
+  if (*scene_add) return SceneAdd(g, id, preset, integrator, at, sets);
+  if (*scene_remove) return SceneRemove(g, instance);
+  if (*pause) return SceneControl(g, rheo::v1::RUN_COMMAND_PAUSE);
+  if (*resume) return SceneControl(g, rheo::v1::RUN_COMMAND_RESUME);
+  if (*reset) return SceneControl(g, rheo::v1::RUN_COMMAND_RESET);
+  if (*step) return SceneControl(g, rheo::v1::RUN_COMMAND_STEP);
+  if (*param_list) return ParamList(g, instance);
+  if (*param_set) return ParamSet(g, instance, preset, sets);
   return 1;
 }

@@ -5,10 +5,20 @@
 namespace rheo::daemon {
 
 Engine::Engine(EngineOptions options)
-    : loop_(options.loop, [this](const rt::TickInfo& info) { Tick(info); }) {}
+    : options_(options), loop_(options.loop, [this](const rt::TickInfo& info) { Tick(info); }) {
+  for (LoopFrame& f : frames_.slots()) f.positions.reserve(3u * options_.max_frame_vertices);
+}
 
 Engine::~Engine() {
   Stop();
+  for (int i = 0; i < slot_count_; ++i) delete slots_[i].object;
+  slot_count_ = 0;
+  DrainRetired();
+  Command c;
+  while (commands_.Pop(c)) {
+    delete c.object;
+    delete c.params;
+  }
 }
 
 void Engine::Start() {
@@ -36,15 +46,60 @@ bool Engine::WaitApplied(uint64_t seq, int64_t timeout_ns) const {
   return true;
 }
 
+void Engine::DrainRetired() {
+  Retired r;
+  while (retired_.pop(r)) {
+    delete r.object;
+    delete r.params;
+  }
+}
+
+void Engine::Retire(Retired r) {
+  // The retire queue is far larger than the command queue's per-tick budget; if it is ever full
+  // the memory is leaked rather than freed on the loop thread.
+  (void)retired_.push(r);
+}
+
+int Engine::FindSlot(uint32_t instance_id) const {
+  for (int i = 0; i < slot_count_; ++i)
+    if (slots_[i].instance_id == instance_id) return i;
+  return -1;
+}
+
 void Engine::Apply(const Command& c) {
   switch (c.type) {
     case Command::Type::kPause: paused_.store(true, std::memory_order_relaxed); break;
     case Command::Type::kResume: paused_.store(false, std::memory_order_relaxed); break;
     case Command::Type::kReset:
       sim_ticks_ = 0;
+      for (int i = 0; i < slot_count_; ++i) slots_[i].object->Reset();
       ++scene_revision_;
       break;
     case Command::Type::kStep: step_once_ = true; break;
+    case Command::Type::kAddObject:
+      if (c.object && slot_count_ < kMaxSceneObjects && FindSlot(c.instance_id) < 0) {
+        slots_[slot_count_++] = Slot{c.instance_id, c.object};
+        ++scene_revision_;
+      } else {
+        Retire({c.object, nullptr});  // the service checked capacity; never leak
+      }
+      break;
+    case Command::Type::kRemoveObject: {
+      int i = FindSlot(c.instance_id);
+      if (i >= 0) {
+        Retire({slots_[i].object, nullptr});
+        slots_[i] = slots_[slot_count_ - 1];
+        --slot_count_;
+        ++scene_revision_;
+      }
+      break;
+    }
+    case Command::Type::kSetParameters: {
+      int i = FindSlot(c.instance_id);
+      if (i >= 0 && c.params) (void)slots_[i].object->SetParameters(*c.params);
+      Retire({nullptr, c.params});
+      break;
+    }
     case Command::Type::kNone: break;
   }
   commands_applied_.fetch_add(1, std::memory_order_relaxed);
@@ -58,11 +113,16 @@ void Engine::Tick(const rt::TickInfo& info) {
 
   const bool paused = paused_.load(std::memory_order_relaxed);
   if (!paused || step_once_) {
+    for (int i = 0; i < slot_count_; ++i) {
+      sim::StepResult r = slots_[i].object->Step(info.dt);
+      if (r.restored) restores_.fetch_add(1, std::memory_order_relaxed);
+    }
     ++sim_ticks_;
     step_once_ = false;
   }
   const double time = static_cast<double>(sim_ticks_) * info.dt;
   sim_time_.store(time, std::memory_order_relaxed);
+  object_count_.store(slot_count_, std::memory_order_relaxed);
 
   LoopFrame& f = frames_.back();
   f.tick = info.tick;
@@ -73,6 +133,28 @@ void Engine::Tick(const rt::TickInfo& info) {
   f.ticks = s.ticks.load(std::memory_order_relaxed);
   f.late_ticks = s.late_ticks.load(std::memory_order_relaxed);
   f.scene_revision = scene_revision_;
+  // Positions: capacity was reserved at start and the service never admits more vertices than
+  // that, so resize() below never allocates.
+  size_t total = 0;
+  for (int i = 0; i < slot_count_; ++i) total += slots_[i].object->positions().size();
+  f.positions.resize(std::min(total, f.positions.capacity() / 3) * 3);
+  uint32_t first = 0;
+  f.object_count = 0;
+  for (int i = 0; i < slot_count_; ++i) {
+    const sim::SimObject& o = *slots_[i].object;
+    auto x = o.positions();
+    if ((first + x.size()) * 3 > f.positions.size()) break;
+    float* out = f.positions.data() + 3u * first;
+    for (size_t k = 0; k < x.size(); ++k) {
+      out[3 * k] = static_cast<float>(x[k].x());
+      out[3 * k + 1] = static_cast<float>(x[k].y());
+      out[3 * k + 2] = static_cast<float>(x[k].z());
+    }
+    f.objects[f.object_count++] =
+        FrameObject{slots_[i].instance_id, first, static_cast<uint32_t>(x.size()), o.sleeping(),
+                    static_cast<uint64_t>(o.events().restores)};
+    first += static_cast<uint32_t>(x.size());
+  }
   frames_.Publish();
   last_work_ns_ = rt::Loop::NowNs() - info.start_ns;
 }

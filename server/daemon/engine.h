@@ -1,7 +1,9 @@
 // The engine: the 1 kHz loop, the queue of scene commands into it and the frames out of it.
 #pragma once
 
+#include <array>
 #include <atomic>
+#include <boost/lockfree/spsc_queue.hpp>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -9,16 +11,47 @@
 #include "rt/command_queue.h"
 #include "rt/loop.h"
 #include "rt/triple_buffer.h"
+#include "sim/sim.h"
 
 namespace rheo::daemon {
 
+/// Most objects one scene holds at once.
+inline constexpr int kMaxSceneObjects = 16;
+
 /// A scene command, plain data so the queue never allocates. Payloads that need memory are
-/// allocated by the sender and handed over by pointer; the loop hands them back for freeing
-/// through the retire queue.
+/// allocated by the sender and handed over by pointer; the loop gives them back through the
+/// retire queue, and they are freed outside the loop.
 struct Command {
-  enum class Type : uint8_t { kNone, kPause, kResume, kReset, kStep };
+  enum class Type : uint8_t {
+    kNone,
+    kPause,
+    kResume,
+    kReset,
+    kStep,
+    kAddObject,      // object: ownership passes to the loop
+    kRemoveObject,   // instance_id
+    kSetParameters,  // instance_id, params: copied into the object, then retired
+  };
   Type type = Type::kNone;
   uint64_t seq = 0;  // assigned by Engine::Submit; the loop acknowledges it in applied_seq
+  uint32_t instance_id = 0;
+  sim::SimObject* object = nullptr;
+  sim::Parameters* params = nullptr;
+};
+
+/// Memory the loop no longer uses, to be freed by another thread.
+struct Retired {
+  sim::SimObject* object = nullptr;
+  sim::Parameters* params = nullptr;
+};
+
+/// One object's part of a frame.
+struct FrameObject {
+  uint32_t instance_id = 0;
+  uint32_t first = 0;  // index of its first vertex in LoopFrame::positions / 3
+  uint32_t vertex_count = 0;
+  bool sleeping = false;
+  uint64_t restores = 0;  // recoveries from a non-finite or exploding state so far
 };
 
 /// What the loop publishes every tick. Preallocated; the loop fills it without allocating.
@@ -29,15 +62,19 @@ struct LoopFrame {
   int64_t work_ns = 0;  // time spent in the previous tick [ns]
   uint64_t late_ticks = 0;
   uint64_t ticks = 0;
-  uint64_t scene_revision = 0;
+  uint64_t scene_revision = 0;  // bumps when objects are added or removed, or the scene reset
+  uint32_t object_count = 0;
+  std::array<FrameObject, kMaxSceneObjects> objects{};
+  std::vector<float> positions;  // x, y, z per vertex [m]; capacity fixed at start
 };
 
 struct EngineOptions {
   rt::LoopOptions loop;
+  uint32_t max_frame_vertices = 400000;  // vertices over all scene objects
 };
 
 /// Owns the real-time loop thread. Everything inside Tick() is allocation-free and lock-free;
-/// other threads talk to it only through Submit() and the frame triple buffer.
+/// other threads talk to it only through Submit(), the retire queue and the frame triple buffer.
 class Engine {
  public:
   explicit Engine(EngineOptions options);
@@ -46,38 +83,56 @@ class Engine {
   void Start();
   void Stop();
 
-  /// Queues a command for the next tick. Returns its sequence number, or 0 when the queue is full.
+  /// Queues a command for the next tick. Returns its sequence number, or 0 when the queue is full
+  /// (the caller keeps ownership of any payload then).
   uint64_t Submit(Command command);
   /// Sequence number of the last command the loop applied.
   uint64_t applied_seq() const { return applied_seq_.load(std::memory_order_acquire); }
   /// Waits (polling, off the loop) until the loop applied `seq` or `timeout_ns` passed.
   bool WaitApplied(uint64_t seq, int64_t timeout_ns) const;
+  /// Frees what the loop handed back. Any one thread at a time (the frame hub does it).
+  void DrainRetired();
 
   /// Frame reader side: only one thread (the frame hub) may call these.
   bool AcquireFrame() { return frames_.Acquire(); }
   const LoopFrame& frame() const { return frames_.front(); }
 
   const rt::Loop& loop() const { return loop_; }
+  const EngineOptions& options() const { return options_; }
   uint64_t commands_applied() const { return commands_applied_.load(std::memory_order_relaxed); }
   uint64_t commands_rejected() const { return commands_rejected_.load(std::memory_order_relaxed); }
+  uint64_t restores() const { return restores_.load(std::memory_order_relaxed); }
   bool paused() const { return paused_.load(std::memory_order_relaxed); }
   double sim_time() const { return sim_time_.load(std::memory_order_relaxed); }
+  int object_count() const { return object_count_.load(std::memory_order_relaxed); }
 
  private:
   void Tick(const rt::TickInfo& info);
   void Apply(const Command& c);
+  void Retire(Retired r);
+  int FindSlot(uint32_t instance_id) const;
 
+  EngineOptions options_;
   rt::Loop loop_;
   rt::CommandQueue<Command, 1024> commands_;
+  boost::lockfree::spsc_queue<Retired, boost::lockfree::capacity<2048>> retired_;
   rt::TripleBuffer<LoopFrame> frames_;
   std::atomic<uint64_t> next_seq_{1};
   std::atomic<uint64_t> applied_seq_{0};
   std::atomic<uint64_t> commands_applied_{0};
   std::atomic<uint64_t> commands_rejected_{0};
+  std::atomic<uint64_t> restores_{0};
   std::atomic<bool> paused_{false};
   std::atomic<double> sim_time_{0.0};
+  std::atomic<int> object_count_{0};
 
   // Loop-thread state.
+  struct Slot {
+    uint32_t instance_id = 0;
+    sim::SimObject* object = nullptr;
+  };
+  std::array<Slot, kMaxSceneObjects> slots_{};
+  int slot_count_ = 0;
   bool step_once_ = false;
   uint64_t sim_ticks_ = 0;  // ticks simulated since the last reset (time = ticks x dt)
   int64_t last_work_ns_ = 0;

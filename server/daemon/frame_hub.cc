@@ -58,6 +58,7 @@ void FrameHub::Run() {
     auto now = std::chrono::steady_clock::now();
     if (next < now) next = now;
     std::this_thread::sleep_until(next);
+    engine_.DrainRetired();
     if (!engine_.AcquireFrame() && latest_) continue;
     auto snap = std::make_shared<FrameSnapshot>();
     snap->frame = engine_.frame();

@@ -32,6 +32,10 @@ struct Flags {
   std::string log_level = "info";
   double rate_hz = 1000.0;
   bool realtime = true;
+  int workers = 0;
+  int max_jobs = 4;
+  int job_timeout_s = 120;
+  int64_t max_tets = 500000;
 };
 
 // Holds an exclusive lock on the data directory so two daemons never share one store.
@@ -93,6 +97,18 @@ int main(int argc, char** argv) {
   app.add_option("--rate", flags.rate_hz, "loop rate [Hz]")
       ->check(CLI::Range(100.0, 4000.0))
       ->capture_default_str();
+  app.add_option("--workers", flags.workers, "mesh worker threads (0 = cores - 1, at least 1)")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
+  app.add_option("--max-jobs", flags.max_jobs, "mesh jobs in flight (queued + running)")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app.add_option("--job-timeout", flags.job_timeout_s, "longest a mesh job may run [s]")
+      ->check(CLI::Range(1, 3600))
+      ->capture_default_str();
+  app.add_option("--max-tets", flags.max_tets, "largest tetrahedral mesh an object may have")
+      ->check(CLI::Range(int64_t{1000}, int64_t{10000000}))
+      ->capture_default_str();
   app.add_flag("!--no-realtime", flags.realtime, "do not ask for SCHED_FIFO and locked memory");
   try {
     app.parse(argc, argv);
@@ -113,6 +129,19 @@ int main(int argc, char** argv) {
   }
 
   using namespace rheo::daemon;
+  const std::string db_path = (std::filesystem::path(flags.data_dir) / "objects.db").string();
+  auto store = Store::Open(db_path);
+  if (!store.ok()) {
+    spdlog::error("{}", store.error().message);
+    return 1;
+  }
+  auto stored = (*store)->Count();
+  spdlog::info("object store {} holds {} objects", db_path, stored.ok() ? *stored : 0);
+  const int workers = flags.workers > 0
+                          ? flags.workers
+                          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()) - 1);
+  JobPool<JobEvent> jobs(workers, flags.max_jobs);
+
   EngineOptions eopts;
   eopts.loop.period_ns = static_cast<int64_t>(1e9 / flags.rate_hz);
   eopts.loop.realtime_priority = flags.realtime;
@@ -124,6 +153,7 @@ int main(int argc, char** argv) {
                env.realtime ? "yes" : "no", env.memory_locked ? "yes" : "no");
   if (!env.notes.empty()) spdlog::warn("loop: {}", env.notes);
 
+  SceneRegistry scene;
   FrameHub hub(engine);
   hub.Start();
 
@@ -136,6 +166,11 @@ int main(int argc, char** argv) {
   ctx.device = rheo::v1::DEVICE_KIND_NONE;
   ctx.started = std::chrono::steady_clock::now();
   ctx.shutting_down = &shutting_down;
+  ctx.store = store->get();
+  ctx.scene = &scene;
+  ctx.jobs = &jobs;
+  ctx.build_limits.max_tets = flags.max_tets;
+  ctx.job_timeout = std::chrono::seconds(flags.job_timeout_s);
 
   DaemonServiceImpl daemon_service(ctx);
   FrameServiceImpl frame_service(ctx);
@@ -172,8 +207,9 @@ int main(int argc, char** argv) {
     spdlog::info("signal {} received, shutting down", signo);
     shutting_down.store(true);
     server->GetHealthCheckService()->SetServingStatus(false);
-    hub.Stop();  // open frame streams end with UNAVAILABLE
-    server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(1500));
+    hub.Stop();       // open frame streams end with UNAVAILABLE
+    jobs.Shutdown();  // running mesh jobs are cancelled; nothing half-stored (one transaction each)
+    server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(1000));
   });
   io.run();
   server->Wait();

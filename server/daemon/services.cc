@@ -52,8 +52,11 @@ grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetSta
   l->set_commands_rejected(ctx_.engine->commands_rejected());
   out->set_device(ctx_.device);
   out->set_frame_clients(static_cast<uint32_t>(ctx_.hub->clients()));
-  out->add_capabilities("loop");
-  out->add_capabilities("frames");
+  out->set_scene_objects(static_cast<uint32_t>(ctx_.scene->size()));
+  if (auto n = ctx_.store->Count(); n.ok()) out->set_stored_objects(static_cast<uint32_t>(*n));
+  out->set_running_jobs(static_cast<uint32_t>(ctx_.jobs->in_flight()));
+  for (const char* c : {"loop", "frames", "sketch", "mesh", "store", "sim"})
+    out->add_capabilities(c);
   return grpc::Status::OK;
 }
 
@@ -100,8 +103,27 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
         google::protobuf::util::TimeUtil::GetCurrentTime();
     frame.set_paused(f.paused);
     frame.set_topology_revision(f.scene_revision);
-    if (f.scene_revision != revision_sent)
-      revision_sent = f.scene_revision;  // topology: no objects yet
+    const bool send_topology = f.scene_revision != revision_sent;
+    revision_sent = f.scene_revision;
+    for (uint32_t i = 0; i < f.object_count; ++i) {
+      const FrameObject& fo = f.objects[i];
+      auto entry = ctx_.scene->Find(fo.instance_id);
+      if (!entry) continue;  // being removed
+      if (send_topology) {
+        v1::Topology* t = frame.add_topology();
+        t->set_instance_id(fo.instance_id);
+        t->set_vertex_count(fo.vertex_count);
+        t->mutable_triangles()->Add(entry->triangles.begin(), entry->triangles.end());
+        t->set_revision(f.scene_revision);
+      }
+      v1::ObjectState* os = frame.add_objects();
+      os->set_instance_id(fo.instance_id);
+      os->set_sleeping(fo.sleeping);
+      if (request->positions()) {
+        const float* p = f.positions.data() + 3u * fo.first;
+        os->mutable_positions()->Add(p, p + 3u * fo.vertex_count);
+      }
+    }
     frame.mutable_loop()->set_ticks(f.ticks);
     frame.mutable_loop()->set_late_ticks(f.late_ticks);
     frame.mutable_loop()->set_last_work_us(f.work_ns / 1e3);
@@ -120,97 +142,6 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
     }
   }
   return grpc::Status::OK;
-}
-
-// ---- SceneService ----
-
-grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetSceneRequest*,
-                                        v1::Scene* out) {
-  out->set_paused(ctx_.engine->paused());
-  out->set_sim_time(ctx_.engine->sim_time());
-  out->set_gravity(9.81);
-  out->set_floor_height(0.0);
-  return grpc::Status::OK;
-}
-
-grpc::Status SceneServiceImpl::AddToScene(grpc::ServerContext*, const v1::AddToSceneRequest*,
-                                          v1::SceneObject*) {
-  return NotYet("AddToScene (needs the simulation library)");
-}
-grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
-                                               const v1::RemoveFromSceneRequest*,
-                                               v1::RemoveFromSceneResponse*) {
-  return NotYet("RemoveFromScene (needs the simulation library)");
-}
-grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*, const v1::SetParametersRequest*,
-                                             v1::SetParametersResponse*) {
-  return NotYet("SetParameters (needs the simulation library)");
-}
-grpc::Status SceneServiceImpl::ListParameters(grpc::ServerContext*,
-                                              const v1::ListParametersRequest*,
-                                              v1::ListParametersResponse*) {
-  return NotYet("ListParameters (needs the simulation library)");
-}
-
-grpc::Status SceneServiceImpl::Control(grpc::ServerContext*, const v1::ControlRequest* request,
-                                       v1::ControlResponse* out) {
-  Command c;
-  switch (request->command()) {
-    case v1::RUN_COMMAND_PAUSE: c.type = Command::Type::kPause; break;
-    case v1::RUN_COMMAND_RESUME: c.type = Command::Type::kResume; break;
-    case v1::RUN_COMMAND_RESET: c.type = Command::Type::kReset; break;
-    case v1::RUN_COMMAND_STEP:
-      if (!ctx_.engine->paused())
-        return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
-                            "STEP advances one tick of a paused scene; pause it first");
-      c.type = Command::Type::kStep;
-      break;
-    default:
-      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                          "command must be PAUSE, RESUME, RESET or STEP");
-  }
-  uint64_t seq = ctx_.engine->Submit(c);
-  if (seq == 0)
-    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                        "the loop's command queue (1024 entries) is full; retry shortly");
-  if (!ctx_.engine->WaitApplied(seq, 1'000'000'000))
-    return grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                        "the loop did not take the command within 1 s");
-  out->set_paused(ctx_.engine->paused());
-  out->set_sim_time(ctx_.engine->sim_time());
-  return grpc::Status::OK;
-}
-
-// ---- ObjectService ----
-
-grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext*, const v1::CreateObjectRequest*,
-                                             grpc::ServerWriter<v1::CreateObjectProgress>*) {
-  return NotYet("CreateObject (sketch to solid)");
-}
-grpc::Status ObjectServiceImpl::CancelJob(grpc::ServerContext*, const v1::CancelJobRequest*,
-                                          v1::CancelJobResponse*) {
-  return NotYet("CancelJob (sketch to solid jobs)");
-}
-grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext*,
-                                               const v1::ExtractContourRequest*,
-                                               v1::ContourReport*) {
-  return NotYet("ExtractContour (the sketch stage)");
-}
-grpc::Status ObjectServiceImpl::ListObjects(grpc::ServerContext*, const v1::ListObjectsRequest*,
-                                            v1::ListObjectsResponse*) {
-  return NotYet("ListObjects (the object store)");
-}
-grpc::Status ObjectServiceImpl::GetObject(grpc::ServerContext*, const v1::GetObjectRequest*,
-                                          v1::Object*) {
-  return NotYet("GetObject (the object store)");
-}
-grpc::Status ObjectServiceImpl::DeleteObject(grpc::ServerContext*, const v1::DeleteObjectRequest*,
-                                             v1::DeleteObjectResponse*) {
-  return NotYet("DeleteObject (the object store)");
-}
-grpc::Status ObjectServiceImpl::ExportObject(grpc::ServerContext*, const v1::ExportObjectRequest*,
-                                             grpc::ServerWriter<v1::ExportChunk>*) {
-  return NotYet("ExportObject (the object store)");
 }
 
 // ---- DeviceService ----

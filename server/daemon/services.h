@@ -7,6 +7,10 @@
 
 #include "daemon/engine.h"
 #include "daemon/frame_hub.h"
+#include "daemon/jobs.h"
+#include "daemon/object_builder.h"
+#include "daemon/scene.h"
+#include "daemon/store.h"
 #include "rheo/v1/daemon.grpc.pb.h"
 #include "rheo/v1/device.grpc.pb.h"
 #include "rheo/v1/frames.grpc.pb.h"
@@ -14,6 +18,12 @@
 #include "rheo/v1/scene.grpc.pb.h"
 
 namespace rheo::daemon {
+
+/// One event of an object-creation job: progress, or the error that ended it.
+struct JobEvent {
+  v1::CreateObjectProgress progress;
+  std::optional<Error> error;
+};
 
 /// What the services share: set once at startup, read-only afterwards.
 struct DaemonContext {
@@ -25,7 +35,17 @@ struct DaemonContext {
   v1::DeviceKind device = v1::DEVICE_KIND_NONE;
   std::chrono::steady_clock::time_point started;
   std::atomic<bool>* shutting_down = nullptr;
+  Store* store = nullptr;
+  SceneRegistry* scene = nullptr;
+  JobPool<JobEvent>* jobs = nullptr;
+  BuildLimits build_limits;
+  std::chrono::seconds job_timeout{120};
 };
+
+/// Loads a stored object, builds its simulation and hands it to the loop (AddToScene and
+/// CreateObject with add_to_scene).
+grpc::Status AddObjectToScene(const DaemonContext& ctx, const v1::AddToSceneRequest& request,
+                              v1::SceneObject* out);
 
 class DaemonServiceImpl final : public v1::DaemonService::Service {
  public:

@@ -422,6 +422,10 @@ Result<MergedOutline> MergeStrokes(const StrokeSet& set, const ContourOptions& o
     }
     closed.push_back(std::move(cand));
   }
+  if (closed.empty() && open.empty())
+    return InvalidArgument(
+        "no closed outline: the strokes enclose no area (fewer than 3 distinct "
+        "points after merging)");
   if (closed.empty()) {
     const auto it = std::max_element(
         open.begin(), open.end(), [](const Open& x, const Open& y) { return x.length < y.length; });

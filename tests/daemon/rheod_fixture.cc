@@ -6,9 +6,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
-#include <regex>
 
 extern char** environ;
 
@@ -46,9 +46,15 @@ int WaitExit(int pid, std::chrono::milliseconds timeout) {
 }  // namespace
 
 RheodProcess::RheodProcess(std::vector<std::string> extra_args) {
-  data_dir_ = MakeTempDir();
-  std::vector<std::string> args = {RHEOD_PATH, "--listen",    "127.0.0.1:0", "--data-dir",
-                                   data_dir_,  "--log-level", "debug"};
+  std::vector<std::string> args = {RHEOD_PATH, "--listen", "127.0.0.1:0", "--log-level", "debug"};
+  auto given = std::find(extra_args.begin(), extra_args.end(), "--data-dir");
+  if (given != extra_args.end() && given + 1 != extra_args.end()) {
+    data_dir_ = *(given + 1);  // the caller's: not removed afterwards
+  } else {
+    data_dir_ = MakeTempDir();
+    owns_data_dir_ = true;
+    args.insert(args.end(), {"--data-dir", data_dir_});
+  }
   args.insert(args.end(), extra_args.begin(), extra_args.end());
   int pipefd[2];
   if (pipe2(pipefd, O_CLOEXEC) != 0) return;
@@ -76,9 +82,13 @@ RheodProcess::RheodProcess(std::vector<std::string> extra_args) {
   });
   if (pid_ < 0) return;
   if (!WaitForLog("listening on", std::chrono::seconds(60))) return;
-  std::smatch m;
   std::string l = log();
-  if (std::regex_search(l, m, std::regex("listening on (127\\.0\\.0\\.1:[0-9]+)"))) address_ = m[1];
+  size_t at = l.find("listening on 127.0.0.1:");
+  if (at != std::string::npos) {
+    size_t start = at + std::string("listening on ").size();
+    size_t end = l.find_first_not_of("0123456789.:", start);
+    address_ = l.substr(start, end - start);
+  }
 }
 
 RheodProcess::~RheodProcess() {
@@ -89,7 +99,7 @@ RheodProcess::~RheodProcess() {
   if (reader_.joinable()) reader_.join();
   if (stderr_fd_ >= 0) close(stderr_fd_);
   std::error_code ec;
-  if (!data_dir_.empty()) std::filesystem::remove_all(data_dir_, ec);
+  if (owns_data_dir_ && !data_dir_.empty()) std::filesystem::remove_all(data_dir_, ec);
 }
 
 std::shared_ptr<grpc::Channel> RheodProcess::channel() const {
@@ -106,6 +116,17 @@ bool RheodProcess::WaitForLog(const std::string& needle, std::chrono::millisecon
 std::string RheodProcess::log() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return log_;
+}
+
+int RheodProcess::WaitForExit(std::chrono::milliseconds timeout) {
+  if (pid_ <= 0) return -1;
+  int code = WaitExit(pid_, timeout);
+  if (code != -1) pid_ = -1;
+  return code;
+}
+
+void RheodProcess::Signal(int signo) {
+  if (pid_ > 0) kill(pid_, signo);
 }
 
 int RheodProcess::Terminate(std::chrono::milliseconds timeout, std::chrono::milliseconds* took) {

@@ -28,6 +28,10 @@ class RheodProcess {
 
   /// Sends SIGTERM and waits; returns the exit code (or 128 + signal), -1 on timeout.
   int Terminate(std::chrono::milliseconds timeout, std::chrono::milliseconds* took = nullptr);
+  /// Waits for the process to exit on its own; returns as Terminate does.
+  int WaitForExit(std::chrono::milliseconds timeout);
+  /// Sends a signal without waiting.
+  void Signal(int signo);
   /// Waits until the log contains `needle` or the timeout passes.
   bool WaitForLog(const std::string& needle, std::chrono::milliseconds timeout);
   std::string log() const;
@@ -36,6 +40,7 @@ class RheodProcess {
   int pid_ = -1;
   int stderr_fd_ = -1;
   std::string data_dir_;
+  bool owns_data_dir_ = false;
   std::string address_;
   std::thread reader_;
   mutable std::mutex mutex_;

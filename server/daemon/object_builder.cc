@@ -1,0 +1,201 @@
+#include "daemon/object_builder.h"
+
+#include <chrono>
+#include <cmath>
+
+#include "mesh/mesh.h"
+#include "sketch/sketch.h"
+
+namespace rheo::daemon {
+namespace {
+
+sketch::ContourOptions ToSketchOptions(const v1::ContourOptions& o) {
+  sketch::ContourOptions s;
+  if (o.epsilon_px() > 0) s.epsilon_px = o.epsilon_px();
+  if (o.max_gap_fraction() > 0) s.max_gap_fraction = o.max_gap_fraction();
+  return s;
+}
+
+void FillContourReport(const sketch::ContourResult& r, v1::ContourReport* out) {
+  for (const Vec2& p : r.contour.points) {
+    auto* q = out->mutable_contour()->add_points();
+    q->set_x(p.x());
+    q->set_y(p.y());
+  }
+  out->set_epsilon_px(r.epsilon_px);
+  out->set_distance_to_line_px(r.line_distance_px);
+  for (const auto& s : r.repairs) out->add_repairs(s);
+  for (const auto& s : r.warnings) out->add_warnings(s);
+  for (const auto& t : r.timings) (*out->mutable_timings_ms())[t.stage] += t.ms;
+}
+
+void FillMeshReport(const mesh::MeshResult& r, v1::MeshReport* out) {
+  const mesh::QualityReport& q = r.quality;
+  out->set_vertex_count(static_cast<uint32_t>(q.num_vertices));
+  out->set_tetrahedron_count(static_cast<uint32_t>(q.num_tets));
+  out->set_surface_triangle_count(static_cast<uint32_t>(q.num_surface_faces));
+  out->set_volume(q.tet_volume_sum);
+  out->set_surface_volume(q.surface_volume);
+  out->set_min_dihedral_deg(q.min_dihedral_deg);
+  out->set_median_dihedral_deg(q.median_dihedral_deg);
+  out->set_max_radius_edge_ratio(q.max_radius_edge);
+  out->set_min_volume_ratio(q.min_volume_ratio);
+  out->set_watertight(q.surface_closed && q.surface_manifold && q.surface_outward &&
+                      q.boundary_matches_surface);
+  for (const auto& t : r.timings) (*out->mutable_timings_ms())[t.stage] += t.seconds * 1e3;
+}
+
+Result<sketch::ContourResult> RunSketch(const v1::Sketch& s, const v1::ContourOptions& o) {
+  const sketch::ContourOptions opts = ToSketchOptions(o);
+  switch (s.source_case()) {
+    case v1::Sketch::kStrokesJson: return sketch::ContourFromStrokesJson(s.strokes_json(), opts);
+    case v1::Sketch::kImage: {
+      const auto& b = s.image();
+      return sketch::ContourFromImage(
+          std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(b.data()), b.size()), opts);
+    }
+    case v1::Sketch::kContour: {
+      sketch::ContourResult r;
+      for (const auto& p : s.contour().points()) r.contour.points.emplace_back(p.x(), p.y());
+      if (r.contour.points.size() < 3)
+        return InvalidArgument("sketch.contour needs at least 3 points, got " +
+                               std::to_string(r.contour.points.size()));
+      for (const Vec2& p : r.contour.points)
+        if (!std::isfinite(p.x()) || !std::isfinite(p.y()))
+          return InvalidArgument("sketch.contour has a non-finite coordinate");
+      return r;
+    }
+    case v1::Sketch::SOURCE_NOT_SET: break;
+  }
+  return InvalidArgument("sketch is empty: set strokes_json, image or contour");
+}
+
+const char* SketchKind(const v1::Sketch& s) {
+  switch (s.source_case()) {
+    case v1::Sketch::kStrokesJson: return "strokes";
+    case v1::Sketch::kImage: return "image";
+    case v1::Sketch::kContour: return "contour";
+    default: return "none";
+  }
+}
+
+Status CheckRange(const char* field, double v, double lo, double hi, const char* unit) {
+  if (v == 0) return Status::Ok();  // 0 = default
+  if (!(v >= lo && v <= hi))
+    return InvalidArgument(std::string(field) + " must be 0 (default) or between " +
+                           std::to_string(lo) + " and " + std::to_string(hi) + " " + unit +
+                           "; got " + std::to_string(v));
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status ValidateCreateRequest(const v1::CreateObjectRequest& r) {
+  if (r.sketch().source_case() == v1::Sketch::SOURCE_NOT_SET)
+    return InvalidArgument("sketch is empty: set strokes_json, image or contour");
+  if (r.name().size() > 200) return InvalidArgument("name is longer than 200 characters");
+  constexpr size_t kMaxBytes = 32u << 20;
+  if (r.sketch().image().size() > kMaxBytes || r.sketch().strokes_json().size() > kMaxBytes)
+    return ResourceExhausted("sketch is larger than the 32 MB limit");
+  if (r.sketch().background_image().size() > kMaxBytes)
+    return ResourceExhausted("background_image is larger than the 32 MB limit");
+  if (r.sketch().contour().points_size() > 100000)
+    return ResourceExhausted("sketch.contour has more than the 100000-point limit");
+  for (Status s :
+       {CheckRange("contour_options.epsilon_px", r.contour_options().epsilon_px(), 0.1, 50, "px"),
+        CheckRange("contour_options.max_gap_fraction", r.contour_options().max_gap_fraction(), 1e-4,
+                   0.5, ""),
+        CheckRange("mesh_options.thickness", r.mesh_options().thickness(), 0.05, 10, ""),
+        CheckRange("mesh_options.resolution", r.mesh_options().resolution(), 5e-4, 0.5, "m"),
+        CheckRange("mesh_options.pixel_size", r.mesh_options().pixel_size(), 1e-6, 1e-2, "m/px")})
+    if (!s.ok()) return s;
+  return Status::Ok();
+}
+
+Result<v1::ContourReport> ExtractContour(const v1::Sketch& sketch,
+                                         const v1::ContourOptions& options) {
+  auto r = RunSketch(sketch, options);
+  if (!r.ok()) return r.error();
+  v1::ContourReport out;
+  FillContourReport(*r, &out);
+  return out;
+}
+
+Result<StoredObject> BuildObject(const v1::CreateObjectRequest& request, const BuildLimits& limits,
+                                 const BuildProgress& progress) {
+  v1::CreateObjectProgress p;
+  p.set_stage("contour");
+  p.set_fraction(0.0);
+  if (auto stop = progress(p)) return *stop;
+
+  auto contour = RunSketch(request.sketch(), request.contour_options());
+  if (!contour.ok()) return contour.error();
+  v1::Object object;
+  FillContourReport(*contour, object.mutable_contour());
+  p.set_fraction(0.1);
+  *p.mutable_contour() = object.contour();
+  if (auto stop = progress(p)) return *stop;
+  p.clear_contour();
+
+  mesh::MeshOptions mo;
+  const auto& rm = request.mesh_options();
+  if (rm.thickness() > 0) mo.thickness = rm.thickness();
+  if (rm.resolution() > 0) mo.resolution = rm.resolution();
+  if (rm.pixel_size() > 0) mo.pixel_size = rm.pixel_size();
+  mo.max_tets = limits.max_tets;
+  mo.max_vertices = limits.max_vertices;
+  std::optional<Error> stopped;
+  mo.progress = [&](std::string_view stage, double fraction) {
+    p.set_stage(std::string(stage));
+    p.set_fraction(0.1 + 0.85 * fraction);
+    stopped = progress(p);
+    return !stopped.has_value();
+  };
+  auto built = mesh::BuildSolid(contour->contour, mo);
+  if (stopped) return *stopped;
+  if (!built.ok()) return built.error();
+  if (!built->quality.valid) {
+    std::string why;
+    for (const auto& f : built->quality.failures) why += (why.empty() ? "" : "; ") + f;
+    return Internal("the mesh failed its validity checks: " + why);
+  }
+  FillMeshReport(*built, object.mutable_mesh());
+
+  StoredObject out;
+  out.id = Store::NewId();
+  out.name = request.name().empty() ? out.id : request.name();
+  out.created_unix_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                            std::chrono::system_clock::now().time_since_epoch())
+                            .count();
+  Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
+  for (const Vec3& x : built->mesh.positions) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  object.set_id(out.id);
+  object.set_name(out.name);
+  object.mutable_created()->set_seconds(out.created_unix_ms / 1000);
+  object.mutable_created()->set_nanos(static_cast<int32_t>(out.created_unix_ms % 1000) * 1000000);
+  *object.mutable_contour_options() = request.contour_options();
+  *object.mutable_mesh_options() = request.mesh_options();
+  object.mutable_bounds_min()->set_x(lo.x());
+  object.mutable_bounds_min()->set_y(lo.y());
+  object.mutable_bounds_min()->set_z(lo.z());
+  object.mutable_bounds_max()->set_x(hi.x());
+  object.mutable_bounds_max()->set_y(hi.y());
+  object.mutable_bounds_max()->set_z(hi.z());
+  object.set_has_background_image(!request.sketch().background_image().empty());
+  out.meta = object.SerializeAsString();
+  out.sketch_kind = SketchKind(request.sketch());
+  switch (request.sketch().source_case()) {
+    case v1::Sketch::kStrokesJson: out.sketch = request.sketch().strokes_json(); break;
+    case v1::Sketch::kImage: out.sketch = request.sketch().image(); break;
+    default: out.sketch = request.sketch().contour().SerializeAsString(); break;
+  }
+  out.background = request.sketch().background_image();
+  out.triangulation_svg = mesh::TriangulationToSvg(*built);
+  out.mesh = std::move(built->mesh);
+  return out;
+}
+
+}  // namespace rheo::daemon

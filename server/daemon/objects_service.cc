@@ -1,0 +1,195 @@
+// ObjectService: sketches become stored solids on the worker pool, with progress and cancel.
+#include <algorithm>
+
+#include "common/tet_mesh_io.h"
+#include "daemon/grpc_status.h"
+#include "daemon/object_builder.h"
+#include "daemon/services.h"
+#include "mesh/mesh.h"
+
+namespace rheo::daemon {
+namespace {
+
+std::chrono::steady_clock::time_point SteadyDeadline(const grpc::ServerContext& ctx,
+                                                     std::chrono::seconds cap) {
+  auto now_sys = std::chrono::system_clock::now();
+  auto now = std::chrono::steady_clock::now();
+  auto limit = now + cap;
+  auto d = ctx.deadline();
+  if (d >= now_sys + cap) return limit;
+  return now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(d - now_sys);
+}
+
+grpc::Status ObjectFromMeta(const StoredObject& o, v1::Object* out) {
+  if (!out->ParseFromString(o.meta))
+    return grpc::Status(grpc::StatusCode::DATA_LOSS, "stored object " + o.id + " is unreadable");
+  return grpc::Status::OK;
+}
+
+}  // namespace
+
+grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
+                                             const v1::CreateObjectRequest* request,
+                                             grpc::ServerWriter<v1::CreateObjectProgress>* writer) {
+  if (Status s = ValidateCreateRequest(*request); !s.ok()) return ToGrpc(s.error());
+  if (ctx_.shutting_down->load())
+    return grpc::Status(grpc::StatusCode::UNAVAILABLE, "shutting down");
+  Store* store = ctx_.store;
+  const BuildLimits limits = ctx_.build_limits;
+  auto job = ctx_.jobs->Submit(
+      SteadyDeadline(*context, ctx_.job_timeout),
+      [request = *request, limits, store](Job<JobEvent>& job) {
+        auto built = BuildObject(request, limits, [&](const v1::CreateObjectProgress& p) {
+          job.Push(JobEvent{p, std::nullopt});
+          return job.ShouldStop();
+        });
+        if (!built.ok()) {
+          job.Push(JobEvent{{}, built.error()});
+          return;
+        }
+        v1::CreateObjectProgress p;
+        p.set_stage("store");
+        p.set_fraction(0.97);
+        job.Push(JobEvent{p, std::nullopt});
+        if (auto stop = job.ShouldStop()) {
+          job.Push(JobEvent{{}, *stop});
+          return;
+        }
+        if (Status s = store->Put(*built); !s.ok()) {
+          job.Push(JobEvent{{}, s.error()});
+          return;
+        }
+        p.set_stage("done");
+        p.set_fraction(1.0);
+        if (!p.mutable_object()->ParseFromString(built->meta)) {
+          job.Push(JobEvent{{}, Internal("object metadata did not serialize")});
+          return;
+        }
+        job.Push(JobEvent{p, std::nullopt});
+      });
+  if (!job.ok()) return ToGrpc(job.error());
+  const std::string job_id = (*job)->id();
+
+  v1::CreateObjectProgress queued;
+  queued.set_job_id(job_id);
+  queued.set_stage("queued");
+  writer->Write(queued);
+  JobEvent ev;
+  bool done = false;
+  bool sent_object = false;
+  while (!done) {
+    if (context->IsCancelled()) {
+      (*job)->Cancel();
+      return grpc::Status(grpc::StatusCode::CANCELLED, "client cancelled " + job_id);
+    }
+    if (!(*job)->Pop(ev, std::chrono::milliseconds(50), done)) continue;
+    if (ev.error) {
+      Error e = *ev.error;
+      e.message = job_id + ": " + e.message;
+      return ToGrpc(e);
+    }
+    ev.progress.set_job_id(job_id);
+    if (ev.progress.has_object() && request->add_to_scene()) {
+      v1::AddToSceneRequest add;
+      add.set_object_id(ev.progress.object().id());
+      if (grpc::Status s = AddObjectToScene(ctx_, add, ev.progress.mutable_scene_object()); !s.ok())
+        return grpc::Status(s.error_code(),
+                            "object " + add.object_id() +
+                                " was stored but not added to the scene: " + s.error_message());
+    }
+    sent_object = sent_object || ev.progress.has_object();
+    if (!writer->Write(ev.progress)) {
+      (*job)->Cancel();
+      return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
+    }
+  }
+  if (!sent_object)
+    return grpc::Status(grpc::StatusCode::INTERNAL, job_id + " ended without a result");
+  return grpc::Status::OK;
+}
+
+grpc::Status ObjectServiceImpl::CancelJob(grpc::ServerContext*, const v1::CancelJobRequest* request,
+                                          v1::CancelJobResponse* out) {
+  if (request->job_id().empty()) return ToGrpc(InvalidArgument("job_id is empty"));
+  out->set_cancelled(ctx_.jobs->Cancel(request->job_id()));
+  return grpc::Status::OK;
+}
+
+grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext*,
+                                               const v1::ExtractContourRequest* request,
+                                               v1::ContourReport* out) {
+  v1::CreateObjectRequest check;
+  *check.mutable_sketch() = request->sketch();
+  *check.mutable_contour_options() = request->options();
+  if (Status s = ValidateCreateRequest(check); !s.ok()) return ToGrpc(s.error());
+  auto r = daemon::ExtractContour(request->sketch(), request->options());
+  if (!r.ok()) return ToGrpc(r.error());
+  *out = std::move(r).value();
+  return grpc::Status::OK;
+}
+
+grpc::Status ObjectServiceImpl::ListObjects(grpc::ServerContext*,
+                                            const v1::ListObjectsRequest* request,
+                                            v1::ListObjectsResponse* out) {
+  uint32_t n = request->page_size() == 0 ? 100 : std::min<uint32_t>(request->page_size(), 1000);
+  std::string next;
+  auto page = ctx_.store->List(n, request->page_token(), &next);
+  if (!page.ok()) return ToGrpc(page.error());
+  for (const auto& o : *page)
+    if (grpc::Status s = ObjectFromMeta(o, out->add_objects()); !s.ok()) return s;
+  out->set_next_page_token(next);
+  return grpc::Status::OK;
+}
+
+grpc::Status ObjectServiceImpl::GetObject(grpc::ServerContext*, const v1::GetObjectRequest* request,
+                                          v1::Object* out) {
+  auto o = ctx_.store->Get(request->id(), /*with_mesh=*/false);
+  if (!o.ok()) return ToGrpc(o.error());
+  return ObjectFromMeta(*o, out);
+}
+
+grpc::Status ObjectServiceImpl::DeleteObject(grpc::ServerContext*,
+                                             const v1::DeleteObjectRequest* request,
+                                             v1::DeleteObjectResponse*) {
+  if (Status s = ctx_.store->Delete(request->id()); !s.ok()) return ToGrpc(s.error());
+  return grpc::Status::OK;
+}
+
+grpc::Status ObjectServiceImpl::ExportObject(grpc::ServerContext*,
+                                             const v1::ExportObjectRequest* request,
+                                             grpc::ServerWriter<v1::ExportChunk>* writer) {
+  auto o = ctx_.store->Get(request->id(), /*with_mesh=*/true);
+  if (!o.ok()) return ToGrpc(o.error());
+  std::string data, type;
+  switch (request->format()) {
+    case v1::EXPORT_FORMAT_VTU: data = WriteVtu(o->mesh), type = "model/vnd.vtu+xml"; break;
+    case v1::EXPORT_FORMAT_OBJ: data = mesh::SurfaceToObj(o->mesh), type = "model/obj"; break;
+    case v1::EXPORT_FORMAT_PLY: data = mesh::SurfaceToPly(o->mesh), type = "model/ply"; break;
+    case v1::EXPORT_FORMAT_STL: data = mesh::SurfaceToStl(o->mesh), type = "model/stl"; break;
+    case v1::EXPORT_FORMAT_SVG: data = o->triangulation_svg, type = "image/svg+xml"; break;
+    case v1::EXPORT_FORMAT_SKETCH:
+      data = o->sketch;
+      type = o->sketch_kind == "strokes" ? "application/json" : "application/octet-stream";
+      break;
+    case v1::EXPORT_FORMAT_BACKGROUND:
+      if (o->background.empty())
+        return ToGrpc(NotFound("object " + o->id + " has no background image"));
+      data = o->background, type = "application/octet-stream";
+      break;
+    default:
+      return ToGrpc(
+          InvalidArgument("format must be one of VTU, OBJ, PLY, STL, SVG, SKETCH, "
+                          "BACKGROUND"));
+  }
+  constexpr size_t kChunk = 1 << 20;
+  for (size_t pos = 0; pos < data.size() || pos == 0; pos += kChunk) {
+    v1::ExportChunk c;
+    if (pos == 0) c.set_media_type(type);
+    c.set_data(data.substr(pos, kChunk));
+    if (!writer->Write(c)) return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
+    if (data.empty()) break;
+  }
+  return grpc::Status::OK;
+}
+
+}  // namespace rheo::daemon

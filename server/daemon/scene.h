@@ -1,0 +1,74 @@
+// The daemon's view of what is in the scene (outside the loop): which stored object each
+// instance came from, its material, and the surface topology that frames refer to.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "common/geometry.h"
+#include "sim/params.h"
+
+namespace rheo::daemon {
+
+struct SceneEntry {
+  uint32_t instance_id = 0;
+  std::string object_id;
+  std::string preset;
+  sim::Integrator integrator = sim::Integrator::kSymplecticEuler;
+  sim::Parameters params;           // mirror of the loop's copy, for validation and listing
+  std::vector<uint32_t> triangles;  // surface, 3 per triangle
+  uint32_t vertex_count = 0;
+  Vec3 position = Vec3::Zero();  // centre of the rest shape [m]
+};
+
+/// Mutex-protected; never touched by the loop.
+class SceneRegistry {
+ public:
+  std::shared_ptr<const SceneEntry> Find(uint32_t id) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = entries_.find(id);
+    return it == entries_.end() ? nullptr : it->second;
+  }
+  std::vector<std::shared_ptr<const SceneEntry>> All() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::vector<std::shared_ptr<const SceneEntry>> out;
+    for (auto& [id, e] : entries_) out.push_back(e);
+    return out;
+  }
+  uint32_t NextId() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return next_id_++;
+  }
+  void Put(std::shared_ptr<const SceneEntry> e) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    entries_[e->instance_id] = std::move(e);
+  }
+  void Erase(uint32_t id) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    entries_.erase(id);
+  }
+  size_t size() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return entries_.size();
+  }
+  uint64_t total_vertices() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    uint64_t n = 0;
+    for (auto& [id, e] : entries_) n += e->vertex_count;
+    return n;
+  }
+  /// Serialises scene mutations (add/remove/set) so validation and submission stay consistent.
+  std::mutex& mutation_mutex() { return mutation_mutex_; }
+
+ private:
+  mutable std::mutex mutex_;
+  std::mutex mutation_mutex_;
+  std::map<uint32_t, std::shared_ptr<const SceneEntry>> entries_;
+  uint32_t next_id_ = 1;
+};
+
+}  // namespace rheo::daemon

@@ -1,0 +1,268 @@
+// SceneService: objects into and out of the loop, material parameters, run control.
+#include <algorithm>
+
+#include "daemon/grpc_status.h"
+#include "daemon/services.h"
+#include "sim/sim.h"
+
+namespace rheo::daemon {
+namespace {
+
+constexpr int64_t kApplyTimeoutNs = 2'000'000'000;
+
+v1::Integrator ToProto(sim::Integrator i) {
+  return i == sim::Integrator::kImplicitEuler ? v1::INTEGRATOR_IMPLICIT
+                                              : v1::INTEGRATOR_SYMPLECTIC_EULER;
+}
+
+void FillParameters(const sim::Parameters& p,
+                    google::protobuf::RepeatedPtrField<v1::Parameter>* out) {
+  for (const sim::ParameterInfo& info : sim::ParameterTable()) {
+    v1::Parameter* q = out->Add();
+    q->set_name(info.name);
+    q->set_value(p.*(info.field));
+    q->set_unit(info.unit);
+    q->set_min(info.min);
+    q->set_max(info.max);
+    q->set_description(info.description);
+  }
+}
+
+void FillSceneObject(const SceneEntry& e, bool sleeping, v1::SceneObject* out) {
+  out->set_instance_id(e.instance_id);
+  out->set_object_id(e.object_id);
+  out->set_preset(e.preset);
+  out->set_integrator(ToProto(e.integrator));
+  FillParameters(e.params, out->mutable_parameters());
+  out->mutable_position()->set_x(e.position.x());
+  out->mutable_position()->set_y(e.position.y());
+  out->mutable_position()->set_z(e.position.z());
+  out->set_sleeping(sleeping);
+}
+
+Status ApplyParameterList(sim::Parameters& p,
+                          const google::protobuf::RepeatedPtrField<v1::Parameter>& list) {
+  for (const v1::Parameter& q : list)
+    if (Status s = sim::SetParameterByName(p, q.name(), q.value()); !s.ok()) return s;
+  return sim::ValidateParameters(p);
+}
+
+grpc::Status Submit(Engine& engine, Command c) {
+  uint64_t seq = engine.Submit(c);
+  if (seq == 0)
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        "the loop's command queue (1024 entries) is full; retry shortly");
+  if (!engine.WaitApplied(seq, kApplyTimeoutNs))
+    return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                        "the loop did not take the command within 2 s");
+  return grpc::Status::OK;
+}
+
+}  // namespace
+
+grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetSceneRequest*,
+                                        v1::Scene* out) {
+  out->set_paused(ctx_.engine->paused());
+  out->set_sim_time(ctx_.engine->sim_time());
+  sim::Parameters defaults;
+  out->set_gravity(defaults.gravity);
+  out->set_floor_height(defaults.floor_height);
+  auto entries = ctx_.scene->All();
+  for (const auto& e : entries) {
+    FillSceneObject(*e, false, out->add_objects());
+    out->set_gravity(e->params.gravity);
+    out->set_floor_height(e->params.floor_height);
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status SceneServiceImpl::AddToScene(grpc::ServerContext*, const v1::AddToSceneRequest* req,
+                                          v1::SceneObject* out) {
+  return AddObjectToScene(ctx_, *req, out);
+}
+
+grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneRequest& request,
+                              v1::SceneObject* out) {
+  const v1::AddToSceneRequest* req = &request;
+  if (req->object_id().empty()) return ToGrpc(InvalidArgument("object_id is empty"));
+  const std::string preset_name = req->preset().empty() ? "soft-jelly" : req->preset();
+  auto preset = sim::FindPreset(preset_name);
+  if (!preset.ok()) return ToGrpc(preset.error());
+  sim::Parameters params = preset->params;
+  if (Status s = ApplyParameterList(params, req->overrides()); !s.ok()) return ToGrpc(s.error());
+  sim::Integrator integrator = preset->integrator;
+  switch (req->integrator()) {
+    case v1::INTEGRATOR_SYMPLECTIC_EULER: integrator = sim::Integrator::kSymplecticEuler; break;
+    case v1::INTEGRATOR_IMPLICIT: integrator = sim::Integrator::kImplicitEuler; break;
+    case v1::INTEGRATOR_UNSPECIFIED: break;
+    default: return ToGrpc(InvalidArgument("integrator must be SYMPLECTIC_EULER or IMPLICIT"));
+  }
+  auto stored = ctx_.store->Get(req->object_id(), /*with_mesh=*/true);
+  if (!stored.ok()) return ToGrpc(stored.error());
+
+  std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
+  if (ctx_.scene->size() >= static_cast<size_t>(kMaxSceneObjects))
+    return ToGrpc(ResourceExhausted("the scene holds its limit of " +
+                                    std::to_string(kMaxSceneObjects) + " objects"));
+  const uint64_t n = stored->mesh.positions.size();
+  if (ctx_.scene->total_vertices() + n > ctx_.engine->options().max_frame_vertices)
+    return ToGrpc(ResourceExhausted(
+        "adding " + std::to_string(n) + " vertices would pass the scene's limit of " +
+        std::to_string(ctx_.engine->options().max_frame_vertices) + " vertices"));
+
+  auto created = sim::SimObject::Create(stored->mesh, params, integrator);
+  if (!created.ok()) return ToGrpc(created.error());
+  std::unique_ptr<sim::SimObject> object = std::move(created).value();
+
+  // Placement: the rest shape's bounding-box centre goes to `position`; by default the object
+  // stands centred over the origin, 2 cm above the floor.
+  Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
+  for (const Vec3& x : stored->mesh.positions) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  Vec3 centre = 0.5 * (lo + hi);
+  Vec3 target = req->has_position()
+                    ? Vec3(req->position().x(), req->position().y(), req->position().z())
+                    : Vec3(0, params.floor_height + 0.02 + 0.5 * (hi.y() - lo.y()), 0);
+  if (!target.allFinite()) return ToGrpc(InvalidArgument("position has a non-finite coordinate"));
+  object->Translate(target - centre);
+
+  auto entry = std::make_shared<SceneEntry>();
+  entry->instance_id = ctx_.scene->NextId();
+  entry->object_id = stored->id;
+  entry->preset = preset_name;
+  entry->integrator = integrator;
+  entry->params = params;
+  entry->vertex_count = static_cast<uint32_t>(n);
+  entry->position = target;
+  entry->triangles.reserve(stored->mesh.surface.size() * 3);
+  for (const auto& f : stored->mesh.surface)
+    for (int32_t v : f) entry->triangles.push_back(static_cast<uint32_t>(v));
+  ctx_.scene->Put(entry);
+
+  Command c;
+  c.type = Command::Type::kAddObject;
+  c.instance_id = entry->instance_id;
+  c.object = object.get();
+  uint64_t seq = ctx_.engine->Submit(c);
+  if (seq == 0) {
+    ctx_.scene->Erase(entry->instance_id);
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        "the loop's command queue (1024 entries) is full; retry shortly");
+  }
+  object.release();  // the loop owns it now
+  if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs))
+    return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                        "the loop did not take the object within 2 s");
+  FillSceneObject(*entry, false, out);
+  return grpc::Status::OK;
+}
+
+grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
+                                               const v1::RemoveFromSceneRequest* req,
+                                               v1::RemoveFromSceneResponse*) {
+  std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
+  if (!ctx_.scene->Find(req->instance_id()))
+    return ToGrpc(
+        NotFound("no scene object with instance_id " + std::to_string(req->instance_id())));
+  Command c;
+  c.type = Command::Type::kRemoveObject;
+  c.instance_id = req->instance_id();
+  if (grpc::Status s = Submit(*ctx_.engine, c); !s.ok()) return s;
+  ctx_.scene->Erase(req->instance_id());
+  return grpc::Status::OK;
+}
+
+grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
+                                             const v1::SetParametersRequest* req,
+                                             v1::SetParametersResponse* out) {
+  std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
+  std::vector<std::shared_ptr<const SceneEntry>> targets;
+  if (req->instance_id() == 0) {
+    targets = ctx_.scene->All();
+    if (targets.empty())
+      return ToGrpc(FailedPrecondition("the scene is empty; add an object first (AddToScene)"));
+  } else {
+    auto e = ctx_.scene->Find(req->instance_id());
+    if (!e)
+      return ToGrpc(
+          NotFound("no scene object with instance_id " + std::to_string(req->instance_id())));
+    targets.push_back(e);
+  }
+  // Validate everything first: nothing changes unless every parameter of every target is valid.
+  std::vector<std::shared_ptr<SceneEntry>> updated;
+  for (const auto& e : targets) {
+    auto next = std::make_shared<SceneEntry>(*e);
+    if (!req->preset().empty()) {
+      auto preset = sim::FindPreset(req->preset());
+      if (!preset.ok()) return ToGrpc(preset.error());
+      next->params = preset->params;
+      next->preset = req->preset();
+    }
+    if (Status s = ApplyParameterList(next->params, req->parameters()); !s.ok())
+      return ToGrpc(s.error());
+    updated.push_back(std::move(next));
+  }
+  for (auto& next : updated) {
+    Command c;
+    c.type = Command::Type::kSetParameters;
+    c.instance_id = next->instance_id;
+    c.params = new sim::Parameters(next->params);
+    uint64_t seq = ctx_.engine->Submit(c);
+    if (seq == 0) {
+      delete c.params;
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          "the loop's command queue (1024 entries) is full; retry shortly");
+    }
+    ctx_.scene->Put(next);
+    if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs))
+      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                          "the loop did not take the change within 2 s");
+  }
+  FillParameters(updated.front()->params, out->mutable_parameters());
+  return grpc::Status::OK;
+}
+
+grpc::Status SceneServiceImpl::ListParameters(grpc::ServerContext*,
+                                              const v1::ListParametersRequest* req,
+                                              v1::ListParametersResponse* out) {
+  sim::Parameters p;
+  if (req->instance_id() != 0) {
+    auto e = ctx_.scene->Find(req->instance_id());
+    if (!e)
+      return ToGrpc(
+          NotFound("no scene object with instance_id " + std::to_string(req->instance_id())));
+    p = e->params;
+  } else if (auto preset = sim::FindPreset("soft-jelly"); preset.ok()) {
+    p = preset->params;
+  }
+  FillParameters(p, out->mutable_parameters());
+  for (const sim::Preset& preset : sim::Presets()) out->add_presets(preset.name);
+  return grpc::Status::OK;
+}
+
+grpc::Status SceneServiceImpl::Control(grpc::ServerContext*, const v1::ControlRequest* request,
+                                       v1::ControlResponse* out) {
+  Command c;
+  switch (request->command()) {
+    case v1::RUN_COMMAND_PAUSE: c.type = Command::Type::kPause; break;
+    case v1::RUN_COMMAND_RESUME: c.type = Command::Type::kResume; break;
+    case v1::RUN_COMMAND_RESET: c.type = Command::Type::kReset; break;
+    case v1::RUN_COMMAND_STEP:
+      if (!ctx_.engine->paused())
+        return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                            "STEP advances one tick of a paused scene; pause it first");
+      c.type = Command::Type::kStep;
+      break;
+    default:
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          "command must be PAUSE, RESUME, RESET or STEP");
+  }
+  if (grpc::Status s = Submit(*ctx_.engine, c); !s.ok()) return s;
+  out->set_paused(ctx_.engine->paused());
+  out->set_sim_time(ctx_.engine->sim_time());
+  return grpc::Status::OK;
+}
+
+}  // namespace rheo::daemon

@@ -1,0 +1,284 @@
+// Objects and scene through a real rheod: sketch upload, progress, storage across restarts,
+// export, errors, and a simulated object streaming frames.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "common/tet_mesh_io.h"
+#include "rheo/v1/frames.grpc.pb.h"
+#include "rheo/v1/objects.grpc.pb.h"
+#include "rheo/v1/scene.grpc.pb.h"
+#include "rheod_fixture.h"
+
+namespace rheo::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string SketchPath(const std::string& name) {
+  return std::string(RHEO_SKETCHES) + "/" + name;
+}
+
+bool HaveSketches() {
+  return std::filesystem::exists(SketchPath("bean.json"));
+}
+
+struct Created {
+  grpc::Status status;
+  std::vector<v1::CreateObjectProgress> progress;
+  v1::Object object;
+};
+
+Created Create(v1::ObjectService::Stub& stub, const v1::CreateObjectRequest& req,
+               std::chrono::milliseconds deadline = 120s) {
+  Created c;
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, deadline);
+  auto reader = stub.CreateObject(&ctx, req);
+  v1::CreateObjectProgress p;
+  while (reader->Read(&p)) {
+    c.progress.push_back(p);
+    if (p.has_object()) c.object = p.object();
+  }
+  c.status = reader->Finish();
+  return c;
+}
+
+v1::CreateObjectRequest BeanRequest() {
+  v1::CreateObjectRequest req;
+  req.set_name("bean");
+  req.mutable_sketch()->set_strokes_json(ReadText(SketchPath("bean.json")));
+  return req;
+}
+
+TEST(RheodObjects, SketchBecomesAStoredSolidThatSurvivesARestart) {
+  if (!HaveSketches()) GTEST_SKIP() << "sample sketches not found at " << RHEO_SKETCHES;
+  std::string data_dir, id;
+  auto keep = std::filesystem::temp_directory_path() / "rheod-keep-XXXXXX";
+  std::string keep_dir = keep.string();
+  ASSERT_NE(mkdtemp(keep_dir.data()), nullptr);
+  {
+    RheodProcess d({"--data-dir", keep_dir});
+    ASSERT_TRUE(d.started()) << d.log();
+    auto stub = v1::ObjectService::NewStub(d.channel());
+    Created c = Create(*stub, BeanRequest());
+    ASSERT_TRUE(c.status.ok()) << c.status.error_message();
+    ASSERT_GE(c.progress.size(), 3u);
+    EXPECT_EQ(c.progress.front().stage(), "queued");
+    EXPECT_FALSE(c.progress.front().job_id().empty());
+    double last = -1;
+    for (const auto& p : c.progress) {
+      EXPECT_GE(p.fraction(), last) << p.stage();
+      last = p.fraction();
+    }
+    EXPECT_EQ(c.progress.back().fraction(), 1.0);
+    id = c.object.id();
+    EXPECT_EQ(c.object.name(), "bean");
+    EXPECT_GT(c.object.contour().contour().points_size(), 10);
+    EXPECT_GT(c.object.mesh().tetrahedron_count(), 100u);
+    EXPECT_TRUE(c.object.mesh().watertight());
+    EXPECT_GE(c.object.mesh().min_dihedral_deg(), 5.0);
+    EXPECT_NEAR(c.object.mesh().volume(), c.object.mesh().surface_volume(),
+                1e-9 * c.object.mesh().volume());
+    EXPECT_EQ(d.Terminate(5s), 0);
+  }
+  RheodProcess d({"--data-dir", keep_dir});
+  ASSERT_TRUE(d.started()) << d.log();
+  auto stub = v1::ObjectService::NewStub(d.channel());
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::ListObjectsResponse list;
+    ASSERT_TRUE(stub->ListObjects(&ctx, {}, &list).ok());
+    ASSERT_EQ(list.objects_size(), 1);
+    EXPECT_EQ(list.objects(0).id(), id);
+  }
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::ExportObjectRequest req;
+    req.set_id(id);
+    req.set_format(v1::EXPORT_FORMAT_VTU);
+    auto reader = stub->ExportObject(&ctx, req);
+    std::string vtu;
+    v1::ExportChunk chunk;
+    while (reader->Read(&chunk)) vtu += chunk.data();
+    ASSERT_TRUE(reader->Finish().ok());
+    auto mesh = ReadVtu(vtu);
+    ASSERT_TRUE(mesh.ok()) << mesh.error().message;
+    v1::Object o;
+    grpc::ClientContext gctx;
+    SetDeadline(gctx);
+    v1::GetObjectRequest g;
+    g.set_id(id);
+    ASSERT_TRUE(stub->GetObject(&gctx, g, &o).ok());
+    EXPECT_EQ(mesh->tets.size(), o.mesh().tetrahedron_count());
+  }
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::DeleteObjectRequest del;
+    del.set_id(id);
+    v1::DeleteObjectResponse r;
+    ASSERT_TRUE(stub->DeleteObject(&ctx, del, &r).ok());
+    grpc::ClientContext ctx2;
+    SetDeadline(ctx2);
+    v1::GetObjectRequest g;
+    g.set_id(id);
+    v1::Object o;
+    EXPECT_EQ(stub->GetObject(&ctx2, g, &o).error_code(), grpc::StatusCode::NOT_FOUND);
+  }
+  std::filesystem::remove_all(keep_dir);
+}
+
+TEST(RheodObjects, BadSketchesGetTheRightCodeAndNothingStoredIsLost) {
+  if (!HaveSketches()) GTEST_SKIP() << "sample sketches not found";
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  auto stub = v1::ObjectService::NewStub(d.channel());
+  Created good = Create(*stub, BeanRequest());
+  ASSERT_TRUE(good.status.ok()) << good.status.error_message();
+
+  v1::CreateObjectRequest empty;
+  EXPECT_EQ(Create(*stub, empty).status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+
+  v1::CreateObjectRequest garbage;
+  garbage.mutable_sketch()->set_image(std::string("\x89PNG\r\n\x1a\n garbage", 17));
+  Created g = Create(*stub, garbage);
+  EXPECT_EQ(g.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << g.status.error_message();
+
+  v1::CreateObjectRequest thick = BeanRequest();
+  thick.mutable_mesh_options()->set_thickness(1000);
+  Created t = Create(*stub, thick);
+  EXPECT_EQ(t.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(t.status.error_message().find("thickness"), std::string::npos);
+
+  v1::CreateObjectRequest open;
+  open.mutable_sketch()->set_strokes_json(
+      R"({"width": 512, "height": 512, "strokes": [[[100,100],[300,100],[300,300]]]})");
+  Created o = Create(*stub, open);
+  EXPECT_EQ(o.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << o.status.error_message();
+
+  Created late = Create(*stub, BeanRequest(), 1ms);
+  EXPECT_EQ(late.status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::ListObjectsResponse list;
+  ASSERT_TRUE(stub->ListObjects(&ctx, {}, &list).ok());
+  ASSERT_GE(list.objects_size(), 1);
+  bool found = false;
+  for (const auto& obj : list.objects()) found = found || obj.id() == good.object.id();
+  EXPECT_TRUE(found) << "the good object must still be stored";
+}
+
+TEST(RheodObjects, MeshSizeLimitIsResourceExhaustedNamingTheLimit) {
+  if (!HaveSketches()) GTEST_SKIP() << "sample sketches not found";
+  RheodProcess d({"--max-tets", "1000"});
+  ASSERT_TRUE(d.started()) << d.log();
+  auto stub = v1::ObjectService::NewStub(d.channel());
+  v1::CreateObjectRequest req = BeanRequest();
+  req.mutable_mesh_options()->set_resolution(0.002);
+  Created c = Create(*stub, req);
+  EXPECT_EQ(c.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED)
+      << c.status.error_message();
+}
+
+TEST(RheodScene, ObjectFallsAndStreamsTopologyOnceThenPositions) {
+  if (!HaveSketches()) GTEST_SKIP() << "sample sketches not found";
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  auto objects = v1::ObjectService::NewStub(d.channel());
+  auto scene = v1::SceneService::NewStub(d.channel());
+  auto frames = v1::FrameService::NewStub(d.channel());
+  v1::CreateObjectRequest req = BeanRequest();
+  req.set_add_to_scene(true);
+  Created c = Create(*objects, req);
+  ASSERT_TRUE(c.status.ok()) << c.status.error_message();
+  ASSERT_TRUE(c.progress.back().has_scene_object());
+  const uint32_t instance = c.progress.back().scene_object().instance_id();
+
+  // Bad parameter: named with its range; nothing changes.
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::SetParametersRequest set;
+    set.set_instance_id(instance);
+    auto* p = set.add_parameters();
+    p->set_name("k_v");
+    p->set_value(-5);
+    v1::SetParametersResponse r;
+    grpc::Status s = scene->SetParameters(&ctx, set, &r);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(s.error_message().find("k_v"), std::string::npos) << s.error_message();
+  }
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::SetParametersRequest set;
+    set.set_instance_id(instance);
+    auto* p = set.add_parameters();
+    p->set_name("k_v");
+    p->set_value(321);
+    v1::SetParametersResponse r;
+    ASSERT_TRUE(scene->SetParameters(&ctx, set, &r).ok());
+    bool seen = false;
+    for (const auto& q : r.parameters())
+      if (q.name() == "k_v") seen = q.value() == 321;
+    EXPECT_TRUE(seen);
+  }
+
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, 60s);
+  v1::WatchFramesRequest w;
+  w.set_rate_hz(20);
+  w.set_max_frames(6);
+  w.set_positions(true);
+  auto reader = frames->WatchFrames(&ctx, w);
+  std::vector<v1::Frame> got;
+  v1::Frame f;
+  while (reader->Read(&f)) got.push_back(f);
+  ASSERT_TRUE(reader->Finish().ok());
+  ASSERT_EQ(got.size(), 6u);
+  ASSERT_EQ(got[0].topology_size(), 1);
+  const auto& topo = got[0].topology(0);
+  EXPECT_EQ(topo.instance_id(), instance);
+  EXPECT_EQ(topo.triangles_size() % 3, 0);
+  EXPECT_EQ(topo.triangles_size() / 3, static_cast<int>(c.object.mesh().surface_triangle_count()));
+  for (size_t i = 1; i < got.size(); ++i) EXPECT_EQ(got[i].topology_size(), 0) << "topology once";
+  ASSERT_EQ(got.back().objects_size(), 1);
+  EXPECT_EQ(got.back().objects(0).positions_size(), static_cast<int>(3 * topo.vertex_count()));
+  // Gravity: the lowest point goes down (or the object already rests on the floor at y >= 0).
+  auto lowest = [](const v1::ObjectState& s) {
+    float m = 1e9f;
+    for (int i = 1; i < s.positions_size(); i += 3) m = std::min(m, s.positions(i));
+    return m;
+  };
+  float y0 = lowest(got.front().objects(0)), y1 = lowest(got.back().objects(0));
+  EXPECT_LT(y1, y0);
+  EXPECT_GT(y1, -0.01f) << "the floor holds the object";
+
+  grpc::ClientContext rctx;
+  SetDeadline(rctx);
+  v1::RemoveFromSceneRequest rm;
+  rm.set_instance_id(instance);
+  v1::RemoveFromSceneResponse rr;
+  ASSERT_TRUE(scene->RemoveFromScene(&rctx, rm, &rr).ok());
+  grpc::ClientContext sctx;
+  SetDeadline(sctx);
+  v1::Scene sc;
+  ASSERT_TRUE(scene->GetScene(&sctx, {}, &sc).ok());
+  EXPECT_EQ(sc.objects_size(), 0);
+}
+
+}  // namespace
+}  // namespace rheo::testing
