@@ -1,13 +1,18 @@
-// `rheo mesh INPUT --out FILE.vtu`: contour JSON -> Teddy solid -> tetrahedra, with a report.
+// `rheo mesh INPUT --out FILE.vtu`: sketch or contour JSON -> Teddy solid -> tetrahedra, with a
+// report.
 #include <fstream>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <sstream>
 
 #include "commands.h"
 #include "common/tet_mesh_io.h"
 #include "mesh/mesh.h"
+#ifdef RHEO_HAVE_SKETCH
+#include "sketch/sketch.h"
+#endif
 
 namespace rheo::tools {
 namespace {
@@ -31,29 +36,44 @@ bool WriteFile(const std::string& path, const std::string& text) {
 }
 
 int RunMesh(const MeshArgs& a) {
-  std::ifstream in(a.input);
+  std::ifstream in(a.input, std::ios::binary);
   if (!in) {
     std::cerr << "rheo mesh: cannot open " << a.input << "\n";
     return 1;
   }
+  std::stringstream buf;
+  buf << in.rdbuf();
+  const std::string bytes = buf.str();
   Polygon2 contour;
-  try {
-    nlohmann::json j = nlohmann::json::parse(in);
-    if (!j.contains("contour") || !j["contour"].is_array()) {
-      std::cerr << "rheo mesh: " << a.input << " has no \"contour\" array of [x, y] points\n";
+  nlohmann::json j = nlohmann::json::parse(bytes, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_discarded() && j.is_object() && j.contains("contour")) {
+    if (!j["contour"].is_array()) {
+      std::cerr << "rheo mesh: " << a.input << ": \"contour\" is not an array of [x, y] points\n";
       return 1;
     }
     for (const auto& p : j["contour"]) {
-      if (!p.is_array() || p.size() != 2) {
+      if (!p.is_array() || p.size() != 2 || !p[0].is_number() || !p[1].is_number()) {
         std::cerr << "rheo mesh: contour point " << contour.points.size()
                   << " is not an [x, y] pair\n";
         return 1;
       }
       contour.points.emplace_back(p[0].get<double>(), p[1].get<double>());
     }
-  } catch (const nlohmann::json::exception& e) {
-    std::cerr << "rheo mesh: " << a.input << " is not valid JSON: " << e.what() << "\n";
+  } else {
+#ifdef RHEO_HAVE_SKETCH
+    // A sketch (stroke JSON, PNG or JPEG): the sketch stage makes the contour first.
+    auto c = sketch::ContourFromSketchBytes(
+        std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
+        sketch::ContourOptions{});
+    if (!c.ok()) {
+      std::cerr << "rheo mesh: " << a.input << ": " << c.error().message << "\n";
+      return 1;
+    }
+    contour = c->contour;
+#else
+    std::cerr << "rheo mesh: " << a.input << " has no \"contour\" array of [x, y] points\n";
     return 1;
+#endif
   }
   mesh::MeshOptions opt;
   opt.thickness = a.thickness;
@@ -153,8 +173,11 @@ int RunMesh(const MeshArgs& a) {
 
 void AddMeshCommand(CLI::App& app) {
   auto args = std::make_shared<MeshArgs>();
-  CLI::App* cmd = app.add_subcommand("mesh", "contour JSON -> Teddy solid -> tetrahedra (.vtu)");
-  cmd->add_option("input", args->input, "contour JSON: {\"contour\": [[x, y], ...]} in pixels")
+  CLI::App* cmd =
+      app.add_subcommand("mesh", "sketch or contour -> Teddy solid -> tetrahedra (.vtu)");
+  cmd->add_option("input", args->input,
+                  "contour JSON ({\"contour\": [[x, y], ...]} in pixels) or a sketch (stroke JSON, "
+                  "PNG, JPEG)")
       ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", args->out, "output tetrahedra, VTK .vtu")->required();
