@@ -75,17 +75,25 @@ void SetDeadline(grpc::ClientContext& ctx, const Global& g, double default_s = 5
                    std::chrono::milliseconds(static_cast<int64_t>(t * 1000)));
 }
 
+// One unary call with the command's deadline (default_s unless --timeout is given).
+template <typename Service, typename Method, typename Request, typename Response>
+grpc::Status Unary(const Global& g, Method method, const Request& request, Response* response,
+                   double default_s = 5.0) {
+  auto stub = Service::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, g, default_s);
+  return ((*stub).*method)(&ctx, request, response);
+}
+
 void PrintPercentiles(const char* name, const rheo::v1::Percentiles& p) {
   std::printf("  %-13s p50 %8.1f us  p99 %8.1f us  p99.9 %8.1f us  max %8.1f us\n", name,
               p.p50_us(), p.p99_us(), p.p999_us(), p.max_us());
 }
 
 int ShowStatus(const Global& g, bool json) {
-  auto stub = rheo::v1::DaemonService::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g);
   rheo::v1::DaemonStatus st;
-  grpc::Status s = stub->GetStatus(&ctx, rheo::v1::GetStatusRequest(), &st);
+  grpc::Status s = Unary<rheo::v1::DaemonService>(g, &rheo::v1::DaemonService::Stub::GetStatus,
+                                                  rheo::v1::GetStatusRequest(), &st);
   if (!s.ok()) return Fail(s);
   if (json) {
     std::cout << ToJson(st, true);
@@ -128,11 +136,9 @@ int Watch(const Global& g, double rate, uint64_t count, bool positions) {
 }
 
 int Health(const Global& g) {
-  auto stub = grpc::health::v1::Health::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g);
   grpc::health::v1::HealthCheckResponse r;
-  grpc::Status s = stub->Check(&ctx, grpc::health::v1::HealthCheckRequest(), &r);
+  grpc::Status s = Unary<grpc::health::v1::Health>(g, &grpc::health::v1::Health::Stub::Check,
+                                                   grpc::health::v1::HealthCheckRequest(), &r);
   if (!s.ok()) return Fail(s);
   std::cout << grpc::health::v1::HealthCheckResponse::ServingStatus_Name(r.status()) << "\n";
   return r.status() == grpc::health::v1::HealthCheckResponse::SERVING ? 0 : 1;
@@ -251,26 +257,22 @@ int ObjectList(const Global& g, bool json) {
 }
 
 int ObjectGet(const Global& g, const std::string& id) {
-  auto stub = rheo::v1::ObjectService::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g);
   rheo::v1::GetObjectRequest req;
   req.set_id(id);
   rheo::v1::Object o;
-  grpc::Status s = stub->GetObject(&ctx, req, &o);
+  grpc::Status s =
+      Unary<rheo::v1::ObjectService>(g, &rheo::v1::ObjectService::Stub::GetObject, req, &o);
   if (!s.ok()) return Fail(s);
   std::cout << ToJson(o, true);
   return 0;
 }
 
 int ObjectDelete(const Global& g, const std::string& id) {
-  auto stub = rheo::v1::ObjectService::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g);
   rheo::v1::DeleteObjectRequest req;
   req.set_id(id);
   rheo::v1::DeleteObjectResponse r;
-  grpc::Status s = stub->DeleteObject(&ctx, req, &r);
+  grpc::Status s =
+      Unary<rheo::v1::ObjectService>(g, &rheo::v1::ObjectService::Stub::DeleteObject, req, &r);
   return s.ok() ? 0 : Fail(s);
 }
 
@@ -313,11 +315,9 @@ int Contour(const Global& g, const std::string& file, const rheo::v1::ContourOpt
   rheo::v1::ExtractContourRequest req;
   if (!LoadSketch(file, req.mutable_sketch())) return 3;
   *req.mutable_options() = co;
-  auto stub = rheo::v1::ObjectService::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g);
   rheo::v1::ContourReport r;
-  grpc::Status s = stub->ExtractContour(&ctx, req, &r);
+  grpc::Status s =
+      Unary<rheo::v1::ObjectService>(g, &rheo::v1::ObjectService::Stub::ExtractContour, req, &r);
   if (!s.ok()) return Fail(s);
   std::cout << ToJson(r, true);
   return 0;
@@ -342,11 +342,9 @@ bool ParseAssignments(const std::vector<std::string>& items,
 }
 
 int SceneShow(const Global& g) {
-  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g);
   rheo::v1::Scene scene;
-  grpc::Status s = stub->GetScene(&ctx, {}, &scene);
+  grpc::Status s = Unary<rheo::v1::SceneService>(g, &rheo::v1::SceneService::Stub::GetScene,
+                                                 rheo::v1::GetSceneRequest(), &scene);
   if (!s.ok()) return Fail(s);
   std::cout << ToJson(scene, true);
   return 0;
@@ -366,11 +364,9 @@ int SceneAdd(const Global& g, const std::string& id, const std::string& preset,
     req.mutable_position()->set_z(at[2]);
   }
   if (!ParseAssignments(sets, req.mutable_overrides())) return 3;
-  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g, 30.0);
   rheo::v1::SceneObject o;
-  grpc::Status s = stub->AddToScene(&ctx, req, &o);
+  grpc::Status s =
+      Unary<rheo::v1::SceneService>(g, &rheo::v1::SceneService::Stub::AddToScene, req, &o, 30.0);
   if (!s.ok()) return Fail(s);
   std::printf("instance %u: %s as %s\n", o.instance_id(), o.object_id().c_str(),
               o.preset().c_str());
@@ -378,37 +374,31 @@ int SceneAdd(const Global& g, const std::string& id, const std::string& preset,
 }
 
 int SceneRemove(const Global& g, uint32_t instance) {
-  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g);
   rheo::v1::RemoveFromSceneRequest req;
   req.set_instance_id(instance);
   rheo::v1::RemoveFromSceneResponse r;
-  grpc::Status s = stub->RemoveFromScene(&ctx, req, &r);
+  grpc::Status s =
+      Unary<rheo::v1::SceneService>(g, &rheo::v1::SceneService::Stub::RemoveFromScene, req, &r);
   return s.ok() ? 0 : Fail(s);
 }
 
 int SceneControl(const Global& g, rheo::v1::RunCommand cmd) {
-  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g);
   rheo::v1::ControlRequest req;
   req.set_command(cmd);
   rheo::v1::ControlResponse r;
-  grpc::Status s = stub->Control(&ctx, req, &r);
+  grpc::Status s =
+      Unary<rheo::v1::SceneService>(g, &rheo::v1::SceneService::Stub::Control, req, &r);
   if (!s.ok()) return Fail(s);
   std::printf("%s at t = %.3f s\n", r.paused() ? "paused" : "running", r.sim_time());
   return 0;
 }
 
 int ParamList(const Global& g, uint32_t instance) {
-  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g);
   rheo::v1::ListParametersRequest req;
   req.set_instance_id(instance);
   rheo::v1::ListParametersResponse r;
-  grpc::Status s = stub->ListParameters(&ctx, req, &r);
+  grpc::Status s =
+      Unary<rheo::v1::SceneService>(g, &rheo::v1::SceneService::Stub::ListParameters, req, &r);
   if (!s.ok()) return Fail(s);
   for (const auto& p : r.parameters())
     std::printf("%-18s %12.6g %-10s [%g, %g]  %s\n", p.name().c_str(), p.value(), p.unit().c_str(),
@@ -425,11 +415,9 @@ int ParamSet(const Global& g, uint32_t instance, const std::string& preset,
   req.set_instance_id(instance);
   req.set_preset(preset);
   if (!ParseAssignments(sets, req.mutable_parameters())) return 3;
-  auto stub = rheo::v1::SceneService::NewStub(Connect(g));
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, g);
   rheo::v1::SetParametersResponse r;
-  grpc::Status s = stub->SetParameters(&ctx, req, &r);
+  grpc::Status s =
+      Unary<rheo::v1::SceneService>(g, &rheo::v1::SceneService::Stub::SetParameters, req, &r);
   return s.ok() ? 0 : Fail(s);
 }
 

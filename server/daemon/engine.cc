@@ -103,7 +103,7 @@ void Engine::Apply(const Command& c) {
     case Command::Type::kNone: break;
   }
   commands_applied_.fetch_add(1, std::memory_order_relaxed);
-  applied_seq_.store(c.seq, std::memory_order_release);
+  last_applied_seq_ = c.seq;
 }
 
 void Engine::Tick(const rt::TickInfo& info) {
@@ -156,6 +156,8 @@ void Engine::Tick(const rt::TickInfo& info) {
     first += static_cast<uint32_t>(x.size());
   }
   frames_.Publish();
+  // Acknowledge only now, so a caller that waited sees the tick's effects (time, frame) too.
+  applied_seq_.store(last_applied_seq_, std::memory_order_release);
   last_work_ns_ = rt::Loop::NowNs() - info.start_ns;
 }
 

@@ -86,7 +86,7 @@ class Engine {
   /// Queues a command for the next tick. Returns its sequence number, or 0 when the queue is full
   /// (the caller keeps ownership of any payload then).
   uint64_t Submit(Command command);
-  /// Sequence number of the last command the loop applied.
+  /// Sequence number of the last command whose tick has completed.
   uint64_t applied_seq() const { return applied_seq_.load(std::memory_order_acquire); }
   /// Waits (polling, off the loop) until the loop applied `seq` or `timeout_ns` passed.
   bool WaitApplied(uint64_t seq, int64_t timeout_ns) const;
@@ -134,6 +134,7 @@ class Engine {
   std::array<Slot, kMaxSceneObjects> slots_{};
   int slot_count_ = 0;
   bool step_once_ = false;
+  uint64_t last_applied_seq_ = 0;
   uint64_t sim_ticks_ = 0;  // ticks simulated since the last reset (time = ticks x dt)
   int64_t last_work_ns_ = 0;
   uint64_t scene_revision_ = 1;
