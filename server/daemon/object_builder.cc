@@ -167,11 +167,9 @@ Result<StoredObject> BuildObject(const v1::CreateObjectRequest& request, const B
   out.created_unix_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
                             std::chrono::system_clock::now().time_since_epoch())
                             .count();
-  Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
-  for (const Vec3& x : built->mesh.positions) {
-    lo = lo.cwiseMin(x);
-    hi = hi.cwiseMax(x);
-  }
+  Eigen::AlignedBox3d box;
+  for (const Vec3& x : built->mesh.positions) box.extend(x);
+  const Vec3 lo = box.min(), hi = box.max();
   object.set_id(out.id);
   object.set_name(out.name);
   object.mutable_created()->set_seconds(out.created_unix_ms / 1000);

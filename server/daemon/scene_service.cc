@@ -116,11 +116,9 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
 
   // Placement: the rest shape's bounding-box centre goes to `position`; by default the object
   // stands centred over the origin, 2 cm above the floor.
-  Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
-  for (const Vec3& x : stored->mesh.positions) {
-    lo = lo.cwiseMin(x);
-    hi = hi.cwiseMax(x);
-  }
+  Eigen::AlignedBox3d box;
+  for (const Vec3& x : stored->mesh.positions) box.extend(x);
+  const Vec3 lo = box.min(), hi = box.max();
   Vec3 centre = 0.5 * (lo + hi);
   Vec3 target = req->has_position()
                     ? Vec3(req->position().x(), req->position().y(), req->position().z())

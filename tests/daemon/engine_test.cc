@@ -41,7 +41,6 @@ TEST(Engine, CommandsFromManyThreadsAreAllAppliedInOrderPerThread) {
         last = seq;
         EXPECT_TRUE(engine.WaitApplied(seq, 5'000'000'000)) << "thread " << t << " seq " << seq;
       }
-      (void)t;
     });
   }
   for (auto& th : threads) th.join();
@@ -74,7 +73,6 @@ TEST(FrameHub, ManyClientsEachSeeNewerFramesAndStopWakesThemAll) {
   hub.Start();
   constexpr int kClients = 8;
   std::atomic<int> finished{0};
-  std::atomic<bool> stop_now{false};
   std::vector<std::thread> clients;
   for (int c = 0; c < kClients; ++c) {
     clients.emplace_back([&, c] {
@@ -107,7 +105,6 @@ TEST(FrameHub, ManyClientsEachSeeNewerFramesAndStopWakesThemAll) {
   EXPECT_EQ(hub.clients(), 0);
   EXPECT_GT(engine.loop().stats().ticks.load(), 0u);
   engine.Stop();
-  (void)stop_now;
 }
 
 }  // namespace
