@@ -81,7 +81,10 @@ class JobPool {
  public:
   using JobPtr = std::shared_ptr<Job<Event>>;
 
-  JobPool(int workers, int max_in_flight) : pool_(workers), max_in_flight_(max_in_flight) {}
+  /// `stopped` turns the reason a job never ran (cancelled or expired while queued) into the
+  /// event its watcher receives, so no watcher sees a job end without a word.
+  JobPool(int workers, int max_in_flight, std::function<Event(Error)> stopped)
+      : pool_(workers), max_in_flight_(max_in_flight), stop_event_(std::move(stopped)) {}
   ~JobPool() { Shutdown(); }
 
   Result<JobPtr> Submit(std::chrono::steady_clock::time_point deadline,
@@ -93,7 +96,11 @@ class JobPool {
     auto job = std::make_shared<Job<Event>>("job-" + std::to_string(++next_id_), deadline);
     jobs_[job->id()] = job;
     boost::asio::post(pool_, [this, job, work = std::move(work)] {
-      if (auto stop = job->ShouldStop(); !stop) work(*job);
+      // A job that was cancelled or expired while queued still tells its watcher why.
+      if (auto stop = job->ShouldStop(); !stop)
+        work(*job);
+      else
+        job->Push(stop_event_(*stop));
       job->Finish();
       std::lock_guard<std::mutex> l(mutex_);
       jobs_.erase(job->id());
@@ -127,6 +134,7 @@ class JobPool {
  private:
   boost::asio::thread_pool pool_;
   int max_in_flight_;
+  std::function<Event(Error)> stop_event_;
   std::mutex mutex_;
   std::map<std::string, JobPtr> jobs_;
   uint64_t next_id_ = 0;

@@ -140,7 +140,9 @@ int main(int argc, char** argv) {
   const int workers = flags.workers > 0
                           ? flags.workers
                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()) - 1);
-  JobPool<JobEvent> jobs(workers, flags.max_jobs);
+  JobPool<JobEvent> jobs(workers, flags.max_jobs, [](rheo::Error e) {
+    return JobEvent{{}, std::move(e)};
+  });
 
   EngineOptions eopts;
   eopts.loop.period_ns = static_cast<int64_t>(1e9 / flags.rate_hz);
