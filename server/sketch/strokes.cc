@@ -1,5 +1,7 @@
 #include "sketch/strokes.h"
 
+#include <simdjson.h>
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -12,143 +14,233 @@
 namespace rheo::sketch::internal {
 namespace {
 
-using json = nlohmann::json;
+// Names a JSON value's type for messages.
+const char* TypeName(simdjson::ondemand::json_type t) {
+  using T = simdjson::ondemand::json_type;
+  switch (t) {
+    case T::array: return "an array";
+    case T::object: return "an object";
+    case T::number: return "a number";
+    case T::string: return "a string";
+    case T::boolean: return "a boolean";
+    case T::null: return "null";
+  }
+  return "a value";
+}
 
-// Streaming handler: builds the StrokeSet directly, refusing anything off the expected shape.
-class StrokeSax : public nlohmann::json_sax<json> {
+// Locates a syntax error for the message: a second, streaming pass that stores nothing. The
+// fast reader below knows that the text is broken but not where; this runs only then.
+class SyntaxLocator : public nlohmann::json_sax<nlohmann::json> {
  public:
-  StrokeSax(StrokeSet* out, int64_t max_points) : out_(out), max_points_(max_points) {}
-
-  std::optional<Error> error;
-
-  bool null() override { return Scalar("null"); }
-  bool boolean(bool) override { return Scalar("a boolean"); }
-  bool number_integer(number_integer_t v) override { return Number(static_cast<double>(v)); }
-  bool number_unsigned(number_unsigned_t v) override { return Number(static_cast<double>(v)); }
-  bool number_float(number_float_t v, const string_t&) override { return Number(v); }
-  bool string(string_t&) override { return Scalar("a string"); }
-  bool binary(binary_t&) override { return Scalar("binary data"); }
-
-  bool start_object(std::size_t) override {
-    if (skip_ > 0) return ++skip_, true;
-    if (level_ == Level::kTop) return level_ = Level::kRoot, true;
-    if (level_ == Level::kRoot) return ++skip_, true;  // value of an unknown key
-    return Fail(Where() + ": expected an array, found an object");
-  }
-  bool end_object() override {
-    if (skip_ > 0) return --skip_, true;
-    level_ = Level::kDone;
-    return true;
-  }
-  bool key(string_t& k) override {
-    if (skip_ > 0) return true;
-    key_ = k;
-    return true;
-  }
-  bool start_array(std::size_t) override {
-    if (skip_ > 0) return ++skip_, true;
-    switch (level_) {
-      case Level::kTop: return Fail("the sketch must be a JSON object, found an array");
-      case Level::kRoot:
-        if (key_ == "strokes") {
-          if (seen_strokes_) return Fail("\"strokes\" appears twice");
-          seen_strokes_ = true;
-          return level_ = Level::kStrokes, true;
-        }
-        if (key_ == "width" || key_ == "height") return Fail("\"" + key_ + "\" must be a number");
-        return ++skip_, true;
-      case Level::kStrokes: out_->strokes.emplace_back(); return level_ = Level::kStroke, true;
-      case Level::kStroke: coords_ = 0; return level_ = Level::kPoint, true;
-      case Level::kPoint: return Fail(Where() + ": expected a number, found an array");
-      case Level::kDone: return Fail("data after the end of the sketch");
-    }
+  std::string message;
+  bool null() override { return true; }
+  bool boolean(bool) override { return true; }
+  bool number_integer(number_integer_t) override { return true; }
+  bool number_unsigned(number_unsigned_t) override { return true; }
+  bool number_float(number_float_t, const string_t&) override { return true; }
+  bool string(string_t&) override { return true; }
+  bool binary(binary_t&) override { return true; }
+  bool start_object(std::size_t) override { return true; }
+  bool end_object() override { return true; }
+  bool key(string_t&) override { return true; }
+  bool start_array(std::size_t) override { return true; }
+  bool end_array() override { return true; }
+  bool parse_error(std::size_t position, const std::string&,
+                   const nlohmann::detail::exception& e) override {
+    // e.what() reads "[json.exception.parse_error.101] parse error at line 1, column 9: ...".
+    std::string what = e.what();
+    const size_t at = what.find("parse error at ");
+    message = "syntax error at byte " + std::to_string(position) + " (" +
+              (at == std::string::npos ? what : what.substr(at + 15)) + ")";
     return false;
   }
-  bool end_array() override {
-    if (skip_ > 0) return --skip_, true;
-    switch (level_) {
-      case Level::kStrokes: return level_ = Level::kRoot, true;
-      case Level::kStroke: return level_ = Level::kStrokes, true;
-      case Level::kPoint:
-        if (coords_ != 2) return Fail(Where() + ": a point must be [x, y] with two numbers");
-        level_ = Level::kStroke;
-        return true;
-      default: return Fail("unexpected end of array");
+};
+
+Error SyntaxError(simdjson::error_code e, std::string_view text) {
+  SyntaxLocator where;
+  nlohmann::json::sax_parse(text.begin(), text.end(), &where, nlohmann::json::input_format_t::json,
+                            /*strict=*/true);
+  if (!where.message.empty()) return InvalidArgument("not valid JSON: " + where.message);
+  return InvalidArgument(std::string("not valid JSON: ") + simdjson::error_message(e));
+}
+
+// Reads {"width": W, "height": H, "strokes": [[[x, y], ...], ...]} in one forward pass over the
+// text (simdjson on-demand: numbers parsed in place, no document tree). Unknown keys are skipped.
+class StrokeReader {
+ public:
+  StrokeReader(StrokeSet* out, int64_t max_points) : out_(out), max_points_(max_points) {}
+
+  Status Read(std::string_view text) {
+    simdjson::padded_string padded(text.data(), text.size());
+    simdjson::ondemand::parser parser;
+    simdjson::ondemand::document doc;
+    if (auto e = parser.iterate(padded).get(doc)) return Syntax(e, doc, padded);
+    simdjson::ondemand::json_type type;
+    if (auto e = doc.type().get(type)) return Syntax(e, doc, padded);
+    if (type != simdjson::ondemand::json_type::object)
+      return InvalidArgument(std::string("the sketch must be a JSON object, found ") +
+                             TypeName(type));
+    simdjson::ondemand::object root;
+    if (auto e = doc.get_object().get(root)) return Syntax(e, doc, padded);
+    for (auto field : root) {
+      std::string_view key;
+      if (auto e = field.unescaped_key().get(key)) return Syntax(e, doc, padded);
+      simdjson::ondemand::value v;
+      if (auto e = field.value().get(v)) return Syntax(e, doc, padded);
+      Status s = Status::Ok();
+      if (key == "width" || key == "height") {
+        s = ReadSize(v, key);
+      } else if (key == "strokes") {
+        if (seen_strokes) return InvalidArgument("\"strokes\" appears twice");
+        seen_strokes = true;
+        s = ReadStrokes(v);
+      } else if (auto e = Skip(v, 1)) {
+        return Syntax(e, doc, padded);
+      }
+      if (!s.ok()) return syntax_ ? Syntax(*syntax_, doc, padded) : s;
     }
-  }
-  bool parse_error(std::size_t position, const std::string& last_token,
-                   const nlohmann::detail::exception&) override {
-    return Fail("not valid JSON: syntax error at byte " + std::to_string(position) + " near '" +
-                last_token.substr(0, 20) + "'");
+    // At the end of the text the parser has no location left; one still there is trailing data.
+    const char* rest = nullptr;
+    if (doc.current_location().get(rest) == simdjson::SUCCESS)
+      return Syntax(simdjson::TRAILING_CONTENT, doc, padded);
+    return Status::Ok();
   }
 
-  bool seen_width = false, seen_height = false, seen_strokes_ = false;
+  bool seen_width = false, seen_height = false, seen_strokes = false;
 
  private:
-  enum class Level { kTop, kRoot, kStrokes, kStroke, kPoint, kDone };
+  // A syntax error found while reading a value: located by the caller, who holds the document.
+  Status Syntax(simdjson::error_code e, simdjson::ondemand::document&,
+                const simdjson::padded_string& text) {
+    return SyntaxError(e, std::string_view(text.data(), text.size()));
+  }
+  Status Defer(simdjson::error_code e) {
+    syntax_ = e;
+    return InvalidArgument("");
+  }
+  // A type error, named at `where`; anything else is a syntax error.
+  Status Expected(simdjson::ondemand::value& v, const std::string& where, const char* what) {
+    simdjson::ondemand::json_type t;
+    if (auto e = v.type().get(t)) return Defer(e);
+    return InvalidArgument(where + ": expected " + what + ", found " + TypeName(t));
+  }
 
-  std::string Where() const {
-    const size_t k = out_->strokes.empty() ? 0 : out_->strokes.size() - 1;
-    std::string w = "strokes[" + std::to_string(k) + "]";
-    if (level_ == Level::kPoint || level_ == Level::kStroke) {
-      const size_t n = out_->strokes.back().size();
-      w += "[" + std::to_string(level_ == Level::kPoint && coords_ > 0 ? n - 1 : n) + "]";
-    }
-    return w;
-  }
-  bool Fail(std::string m) {
-    if (!error) error = InvalidArgument(std::move(m));
-    return false;
-  }
-  bool Scalar(const char* what) {
-    if (skip_ > 0 ||
-        (level_ == Level::kRoot && key_ != "width" && key_ != "height" && key_ != "strokes")) {
-      return true;
-    }
-    if (level_ == Level::kRoot) return Fail("\"" + key_ + "\" must be a number, found " + what);
-    return Fail(Where() + ": expected a number, found " + std::string(what));
-  }
-  bool Number(double v) {
-    if (skip_ > 0) return true;
-    if (level_ == Level::kRoot) {
-      if (key_ == "width" || key_ == "height") {
-        if (!(v >= 1 && v <= 1e6) || v != std::floor(v)) {
-          return Fail("\"" + key_ + "\" must be a whole number of pixels in 1..1000000, found " +
-                      Num(v, 2));
+  // Walks a value that is not used, so that it is validated all the same (the reader otherwise
+  // checks only what it reads).
+  static simdjson::error_code Skip(simdjson::ondemand::value v, int depth) {
+    using T = simdjson::ondemand::json_type;
+    if (depth > kMaxDepth) return simdjson::DEPTH_ERROR;
+    T t;
+    if (auto e = v.type().get(t)) return e;
+    switch (t) {
+      case T::array: {
+        simdjson::ondemand::array a;
+        if (auto e = v.get_array().get(a)) return e;
+        for (auto item : a) {
+          simdjson::ondemand::value c;
+          if (auto e = item.get(c)) return e;
+          if (auto e = Skip(c, depth + 1)) return e;
         }
-        (key_ == "width" ? out_->width : out_->height) = static_cast<int>(v);
-        (key_ == "width" ? seen_width : seen_height) = true;
-        return true;
+        return simdjson::SUCCESS;
       }
-      if (key_ == "strokes") return Fail("\"strokes\" must be an array of strokes");
-      return true;
-    }
-    if (level_ != Level::kPoint) return Fail(Where() + ": expected [x, y], found a number");
-    if (!std::isfinite(v) || std::abs(v) > 1e6) {
-      return Fail(Where() + ": coordinate " + Num(v, 2) + " is outside -1e6..1e6");
-    }
-    if (coords_ >= 2) return Fail(Where() + ": a point must be [x, y] with two numbers");
-    if (coords_ == 0) {
-      if (++points_ > max_points_) {
-        error = ResourceExhausted("the stroke list has more than " + std::to_string(max_points_) +
-                                  " points (limit max_stroke_points)");
-        return false;
+      case T::object: {
+        simdjson::ondemand::object o;
+        if (auto e = v.get_object().get(o)) return e;
+        for (auto field : o) {
+          std::string_view k;
+          if (auto e = field.unescaped_key().get(k)) return e;
+          simdjson::ondemand::value c;
+          if (auto e = field.value().get(c)) return e;
+          if (auto e = Skip(c, depth + 1)) return e;
+        }
+        return simdjson::SUCCESS;
       }
-      out_->strokes.back().emplace_back(v, 0.0);
-    } else {
-      out_->strokes.back().back().y() = v;
+      case T::number: return v.get_double().error();
+      case T::string: return v.get_string().error();
+      case T::boolean: return v.get_bool().error();
+      case T::null: {
+        bool is_null = false;
+        if (auto e = v.is_null().get(is_null)) return e;
+        return is_null ? simdjson::SUCCESS : simdjson::N_ATOM_ERROR;
+      }
     }
-    ++coords_;
-    return true;
+    return simdjson::INCORRECT_TYPE;
+  }
+  static constexpr int kMaxDepth = 256;
+
+  Status ReadSize(simdjson::ondemand::value& v, std::string_view key) {
+    double d = 0;
+    if (v.get_double().get(d)) {
+      simdjson::ondemand::json_type t;
+      if (auto e = v.type().get(t)) return Defer(e);
+      if (t == simdjson::ondemand::json_type::number) return Defer(simdjson::NUMBER_ERROR);
+      return InvalidArgument("\"" + std::string(key) + "\" must be a number, found " + TypeName(t));
+    }
+    if (!(d >= 1 && d <= 1e6) || d != std::floor(d))
+      return InvalidArgument("\"" + std::string(key) +
+                             "\" must be a whole number of pixels in 1..1000000, found " +
+                             Num(d, 2));
+    (key == "width" ? out_->width : out_->height) = static_cast<int>(d);
+    (key == "width" ? seen_width : seen_height) = true;
+    return Status::Ok();
+  }
+
+  Status ReadStrokes(simdjson::ondemand::value& v) {
+    simdjson::ondemand::array strokes;
+    if (v.get_array().get(strokes)) {
+      simdjson::ondemand::json_type t;
+      if (auto e = v.type().get(t)) return Defer(e);
+      return InvalidArgument(std::string("\"strokes\" must be an array of strokes, found ") +
+                             TypeName(t));
+    }
+    for (auto stroke_r : strokes) {
+      simdjson::ondemand::value stroke_v;
+      if (auto e = stroke_r.get(stroke_v)) return Defer(e);
+      const std::string where = "strokes[" + std::to_string(out_->strokes.size()) + "]";
+      out_->strokes.emplace_back();
+      simdjson::ondemand::array stroke;
+      if (stroke_v.get_array().get(stroke))
+        return Expected(stroke_v, where, "an array of [x, y] points");
+      for (auto point_r : stroke) {
+        simdjson::ondemand::value point_v;
+        if (auto e = point_r.get(point_v)) return Defer(e);
+        if (++points_ > max_points_)
+          return ResourceExhausted("the stroke list has more than " + std::to_string(max_points_) +
+                                   " points (limit max_stroke_points)");
+        auto& pts = out_->strokes.back();
+        auto here = [&] { return where + "[" + std::to_string(pts.size()) + "]"; };
+        simdjson::ondemand::array point;
+        if (point_v.get_array().get(point)) return Expected(point_v, here(), "[x, y]");
+        double xy[2] = {0, 0};
+        int n = 0;
+        for (auto coord_r : point) {
+          simdjson::ondemand::value c;
+          if (auto e = coord_r.get(c)) return Defer(e);
+          if (n >= 2) return InvalidArgument(here() + ": a point must be [x, y] with two numbers");
+          double d = 0;
+          if (c.get_double().get(d)) {
+            simdjson::ondemand::json_type t;
+            if (auto e = c.type().get(t)) return Defer(e);
+            if (t == simdjson::ondemand::json_type::number) {
+              return InvalidArgument(here() + ": a coordinate is outside -1e6..1e6");
+            }
+            return InvalidArgument(here() + ": expected a number, found " + TypeName(t));
+          }
+          if (!std::isfinite(d) || std::abs(d) > 1e6)
+            return InvalidArgument(here() + ": coordinate " + Num(d, 2) + " is outside -1e6..1e6");
+          xy[n++] = d;
+        }
+        if (n != 2) return InvalidArgument(here() + ": a point must be [x, y] with two numbers");
+        pts.emplace_back(xy[0], xy[1]);
+      }
+    }
+    return Status::Ok();
   }
 
   StrokeSet* out_;
   int64_t max_points_;
   int64_t points_ = 0;
-  Level level_ = Level::kTop;
-  int skip_ = 0;  // nesting depth inside a value that is ignored
-  int coords_ = 0;
-  std::string key_;
+  std::optional<simdjson::error_code> syntax_;
 };
 
 // A place on a polyline: edge index i (from p[i] to p[i+1]) and fraction t along it.
@@ -275,17 +367,10 @@ Result<StrokeSet> ParseStrokesJson(std::string_view text, const ContourOptions& 
                              std::to_string(options.max_input_bytes) + " (max_input_bytes)");
   }
   StrokeSet set;
-  StrokeSax sax(&set, options.max_stroke_points);
-  bool ok = false;
-  try {
-    ok = json::sax_parse(text.begin(), text.end(), &sax);
-  } catch (const std::exception& e) {
-    return InvalidArgument(std::string("not valid JSON: ") + e.what());
-  }
-  if (sax.error) return *sax.error;
-  if (!ok) return InvalidArgument("not valid JSON");
-  if (!sax.seen_strokes_) return InvalidArgument("the sketch has no \"strokes\" array");
-  if (!sax.seen_width || !sax.seen_height) {
+  StrokeReader reader(&set, options.max_stroke_points);
+  if (Status s = reader.Read(text); !s.ok()) return s.error();
+  if (!reader.seen_strokes) return InvalidArgument("the sketch has no \"strokes\" array");
+  if (!reader.seen_width || !reader.seen_height) {
     return InvalidArgument("the sketch needs \"width\" and \"height\" (canvas size in pixels)");
   }
   return set;

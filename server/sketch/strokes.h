@@ -17,8 +17,9 @@ struct StrokeSet {
   std::vector<std::vector<Vec2>> strokes;  // strokes (s), each a polyline of points [px]
 };
 
-/// Parses {"width": W, "height": H, "strokes": [[[x, y], ...], ...]} with a streaming parser, so
-/// memory stays bounded by max_stroke_points even for hostile input.
+/// Parses {"width": W, "height": H, "strokes": [[[x, y], ...], ...]} in one forward pass (no
+/// document tree); memory is a few times the text, which max_input_bytes bounds, plus the points,
+/// which max_stroke_points bounds.
 Result<StrokeSet> ParseStrokesJson(std::string_view json, const ContourOptions& options);
 
 /// A closed outline merged from strokes, before vectorization.

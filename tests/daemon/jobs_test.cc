@@ -45,11 +45,12 @@ TEST(JobPool, AJobThatExpiresWhileQueuedReportsItsDeadline) {
   auto pool = MakePool(1, 4);
   std::promise<void> release;
   auto gate = release.get_future().share();
-  auto blocker = pool.Submit(std::chrono::steady_clock::now() + 10s,
-                             [gate](Job<Ev>&) { gate.wait(); });
+  auto blocker =
+      pool.Submit(std::chrono::steady_clock::now() + 10s, [gate](Job<Ev>&) { gate.wait(); });
   ASSERT_TRUE(blocker.ok());
-  auto late = pool.Submit(std::chrono::steady_clock::now() + 1ms,
-                          [](Job<Ev>& j) { j.Push(Ev{42, std::nullopt}); });
+  auto late = pool.Submit(std::chrono::steady_clock::now() + 1ms, [](Job<Ev>& j) {
+    j.Push(Ev{42, std::nullopt});
+  });
   ASSERT_TRUE(late.ok());
   std::this_thread::sleep_for(5ms);
   release.set_value();
@@ -65,10 +66,11 @@ TEST(JobPool, CancelWhileQueuedReportsCancelledAndUnknownIdsAreRefused) {
   auto pool = MakePool(1, 4);
   std::promise<void> release;
   auto gate = release.get_future().share();
-  auto blocker = pool.Submit(std::chrono::steady_clock::now() + 10s,
-                             [gate](Job<Ev>&) { gate.wait(); });
-  auto queued = pool.Submit(std::chrono::steady_clock::now() + 10s,
-                            [](Job<Ev>& j) { j.Push(Ev{42, std::nullopt}); });
+  auto blocker =
+      pool.Submit(std::chrono::steady_clock::now() + 10s, [gate](Job<Ev>&) { gate.wait(); });
+  auto queued = pool.Submit(std::chrono::steady_clock::now() + 10s, [](Job<Ev>& j) {
+    j.Push(Ev{42, std::nullopt});
+  });
   ASSERT_TRUE(blocker.ok() && queued.ok());
   EXPECT_TRUE(pool.Cancel((*queued)->id()));
   EXPECT_FALSE(pool.Cancel("job-does-not-exist"));

@@ -67,6 +67,24 @@ TEST(SketchRefusal, StrokeJsonErrorsSayWhere) {
   ExpectError(ContourFromStrokesJson(R"({"height":512,"strokes":[]})", {}),
               ErrorCode::kInvalidArgument, "width");
   ExpectError(ContourFromStrokesJson(R"([1,2,3])", {}), ErrorCode::kInvalidArgument, "object");
+  // Broken JSON is refused with its place, also inside keys that are otherwise ignored, and
+  // after the end of the sketch.
+  ExpectError(
+      ContourFromStrokesJson(R"({"width":512,"height":512,"strokes":[[[1,2]]],"x":tru})", {}),
+      ErrorCode::kInvalidArgument, "byte 54");
+  ExpectError(
+      ContourFromStrokesJson(R"({"width":512,"height":512,"pen":{"a":[1,}},"strokes":[]})", {}),
+      ErrorCode::kInvalidArgument, "byte 41");
+  ExpectError(ContourFromStrokesJson(R"({"width":512,"height":512,"strokes":[]} xyz)", {}),
+              ErrorCode::kInvalidArgument, "byte 41");
+  ExpectError(ContourFromStrokesJson(R"({"width":512,"height":512,"strokes":[],"strokes":[]})", {}),
+              ErrorCode::kInvalidArgument, "twice");
+  ExpectError(ContourFromStrokesJson(R"({"width":512,"height":512,"strokes":[[[1,1e999]]]})", {}),
+              ErrorCode::kInvalidArgument, "strokes[0][0]");
+  ExpectError(ContourFromStrokesJson(R"({"width":512,"height":512,"strokes":[[[1,2,3]]]})", {}),
+              ErrorCode::kInvalidArgument, "two numbers");
+  ExpectError(ContourFromStrokesJson(R"({"width":512,"height":512,"strokes":[5]})", {}),
+              ErrorCode::kInvalidArgument, "strokes[0]: expected an array");
   // Unknown keys, nested or not, are skipped.
   auto ring = testing::Ellipse({256, 256}, 100, 80, 400);
   ring.push_back(ring[0]);
