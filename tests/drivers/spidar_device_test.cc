@@ -4,6 +4,7 @@
 
 #include <thread>
 
+#include "alloc_counter.h"
 #include "drivers/device_factory.h"
 #include "drivers/spidar_emulator.h"
 #include "drivers/spidar_g.h"
@@ -11,9 +12,6 @@
 #include "test_util.h"
 
 namespace rheo::drivers {
-namespace testutil {
-long ThreadAllocations();  // heap allocations by this thread so far (spidar_guards_test.cc)
-}  // namespace testutil
 namespace {
 
 constexpr double kDt = 1e-3;
@@ -117,9 +115,9 @@ TEST_F(SpidarDeviceTest, CommandedWrenchActsOnTheGripAndTheHandFeelsIt) {
   const Wrench w{Vec3(2.0, 0.5, -1.0), Vec3(0.0, 0.01, 0.005)};
   Run(10, w);
   // The real path (termios, UART codec, pose, QP) allocates nothing on the loop thread.
-  const long allocations = testutil::ThreadAllocations();
+  const long allocations = rheo::testing::ThreadAllocations();
   Run(390, w);
-  EXPECT_EQ(testutil::ThreadAllocations() - allocations, 0);
+  EXPECT_EQ(rheo::testing::ThreadAllocations() - allocations, 0);
   const GripSnapshot s = emu_->Snapshot();
   const DeviceStatus& st = dev_->status();
   EXPECT_EQ(st.faults, kFaultNone) << FaultNames(st.faults);

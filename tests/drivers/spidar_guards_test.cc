@@ -2,37 +2,9 @@
 // to zero length), through an in-memory board that turns a pose into encoder counts.
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-#include <new>
-
+#include "alloc_counter.h"
 #include "drivers/spidar_g.h"
 #include "test_util.h"
-
-// Counts heap allocations made by the current thread (the emulator's thread does not count).
-// The replacement pairs malloc with free correctly; GCC's check does not see through it.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-#endif
-namespace {
-thread_local long g_allocations = 0;
-}
-void* operator new(std::size_t n) {
-  ++g_allocations;
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  std::free(p);
-}
-
-namespace rheo::drivers::testutil {
-long ThreadAllocations() {
-  return g_allocations;
-}
-}  // namespace rheo::drivers::testutil
 
 namespace rheo::drivers {
 namespace {
@@ -134,19 +106,19 @@ TEST_F(SpidarGuardsTest, NonFiniteWrenchIsRefused) {
 // with a wrench that changes every tick, allocates nothing.
 TEST_F(SpidarGuardsTest, TickAllocatesNothing) {
   Tick(push_);
-  const long before = g_allocations;
+  const long before = rheo::testing::ThreadAllocations();
   for (int k = 0; k < 1000; ++k) {
     board_->pose.position = Vec3(0.01 * std::sin(k * 0.01), 0.005 * std::cos(k * 0.02), 0.0);
     board_->pose.orientation = Eigen::AngleAxisd(0.2 * std::sin(k * 0.005), Vec3::UnitY());
     ASSERT_TRUE(dev_->Exchange(1e-3).ok());
     dev_->SetWrench(Wrench{Vec3(std::sin(k * 0.03), 0.5, -0.5), Vec3(0.0, 0.01, 0.0)});
   }
-  EXPECT_EQ(g_allocations - before, 0);
+  EXPECT_EQ(rheo::testing::ThreadAllocations() - before, 0);
   {
     auto probe = std::make_unique<int>(1);  // the counter itself works
     EXPECT_EQ(*probe, 1);
   }
-  EXPECT_EQ(g_allocations - before, 1);
+  EXPECT_EQ(rheo::testing::ThreadAllocations() - before, 1);
   EXPECT_EQ(dev_->status().faults, kFaultNone) << FaultNames(dev_->status().faults);
   EXPECT_NE(board_->last, min_);
 }

@@ -1,66 +1,16 @@
-// The 1 kHz path allocates nothing: global operator new is replaced in this binary to count
-// allocations, and Update runs through free motion, pressing, sliding with friction, a concave
-// corner, a surface moving under the proxy and release inside a counted block.
+// The 1 kHz path allocates nothing: the binary counts allocations (rheo_test_alloc), and Update
+// runs through free motion, pressing, sliding with friction, a concave corner, a surface moving
+// under the proxy and release inside a counted block.
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cstdlib>
-#include <new>
-
+#include "alloc_counter.h"
 #include "haptics/haptics.h"
 #include "test_surfaces.h"
-
-namespace {
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) {
-  return operator new(n);
-}
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  return std::malloc(n ? n : 1);
-}
-void* operator new[](std::size_t n, const std::nothrow_t& t) noexcept {
-  return operator new(n, t);
-}
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p, std::size_t) noexcept {
-  std::free(p);
-}
 
 namespace rheo::haptics {
 namespace {
 
-// Counts the allocations made while it is alive.
-class AllocationCounter {
- public:
-  AllocationCounter() : start_(g_allocations.load()) {}
-  long count() const { return g_allocations.load() - start_; }
-
- private:
-  long start_;
-};
-
-TEST(HapticsAllocation, CounterSeesAllocations) {
-  AllocationCounter guard;
-  std::vector<int>* v = new std::vector<int>(100);
-  delete v;
-  EXPECT_GE(guard.count(), 2);
-}
+using rheo::testing::AllocationCounter;
 
 TEST(HapticsAllocation, UpdateAllocatesNothing) {
   // L-shaped block with a concave corner, 2 mm voxels.
