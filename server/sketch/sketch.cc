@@ -124,6 +124,9 @@ Status Finish(std::vector<Vec2> chain, const ContourOptions& o, ContourResult& r
 
 }  // namespace
 
+// Most points the resampled stroke outline may have (a 4096 px canvas's border is 16,384 px).
+constexpr int kMaxResampledPoints = 50000;
+
 Result<ContourResult> ContourFromStrokesJson(std::string_view json, const ContourOptions& o) {
   if (Status s = CheckOptions(o); !s) return s.error();
   ContourResult r;
@@ -139,7 +142,17 @@ Result<ContourResult> ContourFromStrokesJson(std::string_view json, const Contou
   r.repairs = std::move(merged->repairs);
   r.warnings = std::move(merged->warnings);
   sw.Lap("merge", r);
-  std::vector<Vec2> dense = internal::ResampleClosed(merged->closed, o.resample_spacing_px);
+  // The work after this point grows with the outline's length in pixels, which the input's
+  // point count does not bound (two far-apart points make a long outline): cap the samples.
+  double spacing = o.resample_spacing_px;
+  const double length = internal::ClosedLength(merged->closed);
+  if (length > kMaxResampledPoints * spacing) {
+    spacing = length / kMaxResampledPoints;
+    r.warnings.push_back("the outline is " + Num(length, 0) + " px long: resampled every " +
+                         Num(spacing, 2) + " px instead of " + Num(o.resample_spacing_px, 2) +
+                         " px to keep it to " + std::to_string(kMaxResampledPoints) + " points");
+  }
+  std::vector<Vec2> dense = internal::ResampleClosed(merged->closed, spacing);
   sw.Lap("resample", r);
   if (Status s = Finish(std::move(dense), o, r); !s) return s.error();
   sw.Lap("vectorize", r);

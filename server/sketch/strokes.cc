@@ -373,6 +373,20 @@ Result<StrokeSet> ParseStrokesJson(std::string_view text, const ContourOptions& 
   if (!reader.seen_width || !reader.seen_height) {
     return InvalidArgument("the sketch needs \"width\" and \"height\" (canvas size in pixels)");
   }
+  // A point far off the canvas is a glitch of the input device or the file, not a drawing.
+  for (size_t k = 0; k < set.strokes.size(); ++k) {
+    for (size_t i = 0; i < set.strokes[k].size(); ++i) {
+      const Vec2& p = set.strokes[k][i];
+      if (p.x() < -set.width || p.x() > 2.0 * set.width || p.y() < -set.height ||
+          p.y() > 2.0 * set.height) {
+        return InvalidArgument("strokes[" + std::to_string(k) + "][" + std::to_string(i) +
+                               "]: point (" + Num(p.x(), 1) + ", " + Num(p.y(), 1) +
+                               ") lies far outside the " + std::to_string(set.width) + " x " +
+                               std::to_string(set.height) +
+                               " canvas (allowed: one canvas size beyond each side)");
+      }
+    }
+  }
   return set;
 }
 

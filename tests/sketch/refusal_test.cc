@@ -93,6 +93,24 @@ TEST(SketchRefusal, StrokeJsonErrorsSayWhere) {
   EXPECT_TRUE(ContourFromStrokesJson(j, {}).ok());
 }
 
+TEST(SketchRefusal, PointFarOffTheCanvasIsRefusedWithItsPlace) {
+  ExpectError(
+      ContourFromStrokesJson(
+          R"({"width":512,"height":512,"strokes":[[[10,10],[300,20],[139.7,322221.9]]]})", {}),
+      ErrorCode::kInvalidArgument, "strokes[0][2]: point (139.7, 322221.9) lies far outside");
+}
+
+TEST(SketchRefusal, HugeOutlineIsResampledCoarserWithAWarning) {
+  // Three points on a 1e6 px canvas make an outline 2.7 million px long: the work stays bounded.
+  auto r = ContourFromStrokesJson(
+      R"({"width":1000000,"height":1000000,"strokes":[[[0,0],[900000,0],[450000,800000],[0,0]]]})",
+      {});
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  ASSERT_FALSE(r->warnings.empty());
+  EXPECT_NE(r->warnings.back().find("resampled every"), std::string::npos) << r->warnings.back();
+  EXPECT_GE(r->contour.points.size(), 3u);
+}
+
 TEST(SketchRefusal, TooManyStrokePointsIsResourceExhausted) {
   std::string j = R"({"width":512,"height":512,"strokes":[[)";
   for (int i = 0; i < 100001; ++i) j += (i ? ",[" : "[") + std::to_string(i % 500) + ",1]";
