@@ -39,6 +39,83 @@ bool Inside(CDT::Face_handle f) {
   return f->info().nesting % 2 == 1;
 }
 
+// Points of a hexagonal lattice with spacing `size` strictly inside the polygon and at least
+// `keep` from its boundary: near-equilateral triangles everywhere but a band along the contour,
+// so the refinement that follows only works on that band. Linear in lattice points + edges.
+std::vector<CDT::Point> HexLatticeInside(const std::vector<Vec2>& polygon, double size,
+                                         double keep) {
+  Vec2 lo = polygon[0], hi = polygon[0];
+  for (const Vec2& p : polygon) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  const double row = size * std::sqrt(3.0) / 2;
+  const int rows = static_cast<int>(std::floor((hi.y() - lo.y()) / row)) + 1;
+  // Scanline crossings of every row with the polygon (half-open in y: each vertex once).
+  std::vector<std::vector<double>> cross(rows);
+  const size_t n = polygon.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Vec2 &a = polygon[i], &b = polygon[(i + 1) % n];
+    if (a.y() == b.y()) continue;
+    const double y0 = std::min(a.y(), b.y()), y1 = std::max(a.y(), b.y());
+    const int j0 = std::max(0, static_cast<int>(std::ceil((y0 - lo.y()) / row - 0.5)));
+    for (int j = j0; j < rows; ++j) {
+      const double y = lo.y() + (j + 0.5) * row;
+      if (y >= y1) break;
+      if (y < y0) continue;
+      cross[j].push_back(a.x() + (b.x() - a.x()) * (y - a.y()) / (b.y() - a.y()));
+    }
+  }
+  // Boundary edges bucketed on a grid of cells >= keep, for the clearance test.
+  const double cell = std::max(keep, size);
+  const int nx = static_cast<int>((hi.x() - lo.x()) / cell) + 1;
+  const int ny = static_cast<int>((hi.y() - lo.y()) / cell) + 1;
+  std::vector<int32_t> start(static_cast<size_t>(nx) * ny + 1, 0), items;
+  auto cells_of = [&](size_t i, auto&& visit) {
+    const Vec2 &a = polygon[i], &b = polygon[(i + 1) % n];
+    const int x0 = static_cast<int>((std::min(a.x(), b.x()) - lo.x()) / cell);
+    const int x1 = static_cast<int>((std::max(a.x(), b.x()) - lo.x()) / cell);
+    const int y0 = static_cast<int>((std::min(a.y(), b.y()) - lo.y()) / cell);
+    const int y1 = static_cast<int>((std::max(a.y(), b.y()) - lo.y()) / cell);
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) visit(static_cast<size_t>(y) * nx + x);
+  };
+  for (size_t i = 0; i < n; ++i) cells_of(i, [&](size_t c) { ++start[c + 1]; });
+  for (size_t c = 1; c < start.size(); ++c) start[c] += start[c - 1];
+  items.resize(start.back());
+  std::vector<int32_t> fill(start.begin(), start.end() - 1);
+  for (size_t i = 0; i < n; ++i)
+    cells_of(i, [&](size_t c) { items[fill[c]++] = static_cast<int32_t>(i); });
+  auto clear_of_boundary = [&](const Vec2& p) {
+    const int cx = static_cast<int>((p.x() - lo.x()) / cell);
+    const int cy = static_cast<int>((p.y() - lo.y()) / cell);
+    for (int y = std::max(0, cy - 1); y <= std::min(ny - 1, cy + 1); ++y)
+      for (int x = std::max(0, cx - 1); x <= std::min(nx - 1, cx + 1); ++x) {
+        const size_t c = static_cast<size_t>(y) * nx + x;
+        for (int32_t k = start[c]; k < start[c + 1]; ++k) {
+          const Vec2 &a = polygon[items[k]], &b = polygon[(items[k] + 1) % n];
+          const Vec2 ab = b - a;
+          const double t =
+              std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-300), 0.0, 1.0);
+          if ((a + t * ab - p).squaredNorm() < keep * keep) return false;
+        }
+      }
+    return true;
+  };
+  std::vector<CDT::Point> out;
+  for (int j = 0; j < rows; ++j) {
+    auto& xs = cross[j];
+    std::sort(xs.begin(), xs.end());
+    const double y = lo.y() + (j + 0.5) * row;
+    const double shift = (j % 2) * 0.5 * size;
+    for (size_t k = 0; k + 1 < xs.size(); k += 2) {
+      for (double x = lo.x() + shift + size * std::ceil((xs[k] + keep - lo.x() - shift) / size);
+           x < xs[k + 1] - keep; x += size) {
+        const Vec2 p(x, y);
+        if (clear_of_boundary(p)) out.emplace_back(x, y);
+      }
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 Result<Mesh2> QualityMesh(const std::vector<Vec2>& polygon, double size) {
@@ -56,6 +133,10 @@ Result<Mesh2> QualityMesh(const std::vector<Vec2>& polygon, double size) {
     auto a = handles[i], b = handles[(i + 1) % handles.size()];
     if (a != b) cdt.insert_constraint(a, b);
   }
+  // Slightly under `size`: lattice edges exactly at the bound would fail the size criterion on
+  // round-off and be split.
+  const std::vector<CDT::Point> lattice = HexLatticeInside(polygon, 0.98 * size, 0.6 * size);
+  cdt.insert(lattice.begin(), lattice.end());
   // 0.125 bounds circumradius / shortest edge, i.e. angles >= 20.7 degrees.
   CGAL::refine_Delaunay_mesh_2(cdt, Criteria(0.125, size));
   // A chord (interior edge between two contour vertices) would pinch the solid to zero thickness.
