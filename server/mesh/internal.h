@@ -71,4 +71,9 @@ struct ColumnLimits {
 Result<TetMesh> BuildColumns(const Mesh2& mesh2, const std::vector<double>& heights, double layer,
                              const ColumnLimits& limits);
 
+/// Moves interior vertices (those on no surface face) of tetrahedra whose smallest dihedral angle
+/// is under `threshold_deg` toward their neighbours' centroid when that raises the smallest
+/// dihedral angle around them; at most `sweeps` passes. The surface does not change.
+void ImproveInterior(TetMesh& mesh, double threshold_deg, int sweeps);
+
 }  // namespace rheo::mesh::internal
