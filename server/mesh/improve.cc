@@ -1,9 +1,10 @@
-// Interior vertex smoothing of the tetrahedra: the surface stays exactly as built; an interior
-// vertex of a poor tetrahedron moves toward the centroid of its neighbours when that raises the
-// smallest dihedral angle among its tetrahedra ("smart" Laplacian smoothing: a move that would
-// make any of them worse is not taken, so nothing is ever inverted).
+// Vertex smoothing of the tetrahedra: a vertex of a poor tetrahedron moves toward the centroid of
+// its neighbours when that raises the smallest dihedral angle among its tetrahedra ("smart"
+// Laplacian smoothing: a move that would make any of them worse is not taken, so nothing is ever
+// inverted). Surface vertices stay on the inflated surface; contour vertices do not move.
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <numbers>
 
 #include "mesh/internal.h"
@@ -26,11 +27,13 @@ double MaxDihedralCos(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3
 
 }  // namespace
 
-void ImproveInterior(TetMesh& mesh, double threshold_deg, int sweeps) {
+void ImproveTets(TetMesh& mesh, double threshold_deg, int sweeps,
+                 const std::function<double(const Vec2&)>& height) {
   const size_t nv = mesh.positions.size();
-  std::vector<uint8_t> fixed(nv, 0);
+  // 0 interior (moves freely), 1 on the top or bottom surface (moves on it), 2 fixed (contour).
+  std::vector<uint8_t> kind(nv, 0);
   for (const auto& f : mesh.surface)
-    for (int32_t v : f) fixed[v] = 1;
+    for (int32_t v : f) kind[v] = height && mesh.positions[v].z() != 0.0 ? 1 : 2;
   // Vertex -> tetrahedra, CSR.
   std::vector<int32_t> start(nv + 1, 0), items(4 * mesh.tets.size());
   for (const auto& t : mesh.tets)
@@ -57,7 +60,7 @@ void ImproveInterior(TetMesh& mesh, double threshold_deg, int sweeps) {
     for (size_t k = 0; k < mesh.tets.size(); ++k)
       if (tet_cos(static_cast<int32_t>(k)) > threshold_cos)
         for (int32_t v : mesh.tets[k])
-          if (!fixed[v]) todo.push_back(v);
+          if (kind[v] != 2) todo.push_back(v);
     std::sort(todo.begin(), todo.end());
     todo.erase(std::unique(todo.begin(), todo.end()), todo.end());
     if (todo.empty()) break;
@@ -75,6 +78,11 @@ void ImproveInterior(TetMesh& mesh, double threshold_deg, int sweeps) {
       Vec3 best_p = old;
       for (double step : {1.0, 0.5, 0.25}) {
         P[v] = old + step * (centroid - old);
+        if (kind[v] == 1) {
+          const double z = height(Vec2(P[v].x(), P[v].y()));
+          if (!(z > 0)) continue;  // off the solid's footprint
+          P[v].z() = old.z() > 0 ? z : -z;
+        }
         const double w = worst_around(v);
         if (w < best) best = w, best_p = P[v];
       }

@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "common/geometry.h"
@@ -71,9 +72,11 @@ struct ColumnLimits {
 Result<TetMesh> BuildColumns(const Mesh2& mesh2, const std::vector<double>& heights, double layer,
                              const ColumnLimits& limits);
 
-/// Moves interior vertices (those on no surface face) of tetrahedra whose smallest dihedral angle
-/// is under `threshold_deg` toward their neighbours' centroid when that raises the smallest
-/// dihedral angle around them; at most `sweeps` passes. The surface does not change.
-void ImproveInterior(TetMesh& mesh, double threshold_deg, int sweeps);
+/// Moves vertices of tetrahedra whose smallest dihedral angle is under `threshold_deg` toward
+/// their neighbours' centroid when that raises the smallest dihedral angle around them; at most
+/// `sweeps` passes. Vertices on the surface with z != 0 stay on z = +-height(x, y) (none move
+/// when `height` is empty); contour vertices (z = 0) stay put.
+void ImproveTets(TetMesh& mesh, double threshold_deg, int sweeps,
+                 const std::function<double(const Vec2&)>& height);
 
 }  // namespace rheo::mesh::internal

@@ -87,7 +87,7 @@ Result<MeshResult> BuildSolid(const Polygon2& contour_px, const MeshOptions& opt
                                      {options.max_vertices, options.max_tets});
   if (!tets.ok()) return tets.error();
   r.mesh = std::move(*tets);
-  internal::ImproveInterior(r.mesh, 15.0, 8);
+  internal::ImproveTets(r.mesh, 15.0, 8, [&height](const Vec2& p) { return height(p); });
   r.mesh2d = std::move(mesh2->tri);
 
   if (!st.Next("tetrahedra", "quality", 0.8)) return CancelledIn("quality");
