@@ -109,6 +109,11 @@ Status ValidateCreateRequest(const v1::CreateObjectRequest& r) {
         CheckRange("mesh_options.resolution", r.mesh_options().resolution(), 5e-4, 0.5, "m"),
         CheckRange("mesh_options.pixel_size", r.mesh_options().pixel_size(), 1e-6, 1e-2, "m/px")})
     if (!s.ok()) return s;
+  if (!v1::Division_IsValid(r.mesh_options().division()))
+    return InvalidArgument(
+        "mesh_options.division must be DIVISION_QUALITY (0) or DIVISION_PAPER "
+        "(1), got " +
+        std::to_string(r.mesh_options().division()));
   return Status::Ok();
 }
 
@@ -141,6 +146,8 @@ Result<StoredObject> BuildObject(const v1::CreateObjectRequest& request, const B
   const auto& rm = request.mesh_options();
   if (rm.thickness() > 0) mo.thickness = rm.thickness();
   if (rm.resolution() > 0) mo.resolution = rm.resolution();
+  mo.division =
+      rm.division() == v1::DIVISION_PAPER ? mesh::Division::kPaper : mesh::Division::kQuality;
   if (rm.pixel_size() > 0) mo.pixel_size = rm.pixel_size();
   mo.max_tets = limits.max_tets;
   mo.max_vertices = limits.max_vertices;
