@@ -81,11 +81,12 @@ using ProgressFn = std::function<bool(std::string_view stage, double fraction)>;
 
 /// Which 2D cells carry the tetrahedral columns.
 enum class Division : uint8_t {
-  /// A quality Delaunay mesh of the outline (angles >= ~20 deg, edges <= resolution) lifted onto
-  /// the Teddy surface. Default: it meets the quality targets.
+  /// A quality Delaunay mesh of the outline (a hexagonal lattice inside, CGAL refinement along
+  /// the contour: angles >= ~20 deg, edges <= resolution) lifted onto the Teddy surface.
+  /// Default: about half the tetrahedra of kPaper for a better worst angle.
   kQuality = 0,
   /// The paper's cells: Teddy's final triangles cut into rows along the quarter ovals (figures
-  /// 10-14). Valid, but it inherits the skinny fan and sleeve triangles of Teddy.
+  /// 10-14). Its skinny fan and sleeve triangles are repaired by the smoothing that follows.
   kPaper = 1,
 };
 
