@@ -55,7 +55,8 @@ struct Parameters {
   double max_substeps = 64;       // cap on substeps per tick [-]
   double implicit_damping = 0.0;  // 1: symplectic Euler treats the edge dampers' diagonal
                                   // implicitly, lifting the damping step bound [-]
-  double implicit_substeps = 1;   // substeps per tick of the implicit integrator [-]
+  double implicit_substeps = 1;   // substeps per tick of the implicit integrator, at least one
+                                  // per 5 ms of the tick [-]
   double cg_tolerance = 1e-5;     // relative residual at which CG stops [-]
   double cg_max_iterations = 60;  // [-]
   double max_speed = 100.0;       // a node faster than this is an explosion [m/s]

@@ -9,6 +9,9 @@
 
 namespace rheo::sim {
 
+// Longest substep of the implicit integrator [s].
+constexpr double kMaxImplicitStep = 5e-3;
+
 // Steps between snapshots of the last good state (a restore goes back at most this many ticks).
 constexpr int32_t kSnapshotInterval = 8;
 
@@ -279,7 +282,10 @@ StepResult SimObject::Step(double dt) {
       internal::SymplecticEulerSubstep(model_, params_, terms, state_, h, dt);
     }
   } else {
-    substeps = static_cast<int32_t>(params_.implicit_substeps);
+    // The linearised step is stable for any h but not accurate for long ones: the springs'
+    // directions change within a step. Ticks over kMaxImplicitStep are split (offline runs).
+    substeps = std::max(static_cast<int32_t>(params_.implicit_substeps),
+                        static_cast<int32_t>(std::ceil(dt / kMaxImplicitStep - 1e-9)));
     const double h = dt / substeps;
     for (int32_t k = 0; k < substeps; ++k) {
       const internal::SolveStats st =
