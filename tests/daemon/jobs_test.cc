@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <future>
 
 namespace rheo::daemon {
@@ -30,9 +31,26 @@ std::vector<Ev> Drain(Job<Ev>& job) {
   return out;
 }
 
+// Work that holds a worker until the test opens the gate.
+struct Gate {
+  std::promise<void> release;
+  std::shared_future<void> open = release.get_future().share();
+  std::function<void(Job<Ev>&)> Work() const {
+    return [f = open](Job<Ev>&) { f.wait(); };
+  }
+};
+
+std::chrono::steady_clock::time_point In(std::chrono::milliseconds d) {
+  return std::chrono::steady_clock::now() + d;
+}
+
+void Push42(Job<Ev>& j) {
+  j.Push(Ev{42, std::nullopt});
+}
+
 TEST(JobPool, WorkRunsAndItsEventsArriveInOrder) {
   auto pool = MakePool(2, 4);
-  auto job = pool.Submit(std::chrono::steady_clock::now() + 10s, [](Job<Ev>& j) {
+  auto job = pool.Submit(In(10s), [](Job<Ev>& j) {
     for (int i = 1; i <= 3; ++i) j.Push(Ev{i, std::nullopt});
   });
   ASSERT_TRUE(job.ok());
@@ -41,64 +59,47 @@ TEST(JobPool, WorkRunsAndItsEventsArriveInOrder) {
   for (int i = 0; i < 3; ++i) EXPECT_EQ(events[i].value, i + 1);
 }
 
-TEST(JobPool, AJobThatExpiresWhileQueuedReportsItsDeadline) {
-  auto pool = MakePool(1, 4);
-  std::promise<void> release;
-  auto gate = release.get_future().share();
-  auto blocker =
-      pool.Submit(std::chrono::steady_clock::now() + 10s, [gate](Job<Ev>&) { gate.wait(); });
-  ASSERT_TRUE(blocker.ok());
-  auto late = pool.Submit(std::chrono::steady_clock::now() + 1ms, [](Job<Ev>& j) {
-    j.Push(Ev{42, std::nullopt});
-  });
-  ASSERT_TRUE(late.ok());
-  std::this_thread::sleep_for(5ms);
-  release.set_value();
-  auto events = Drain(**late);
-  ASSERT_EQ(events.size(), 1u);
-  ASSERT_TRUE(events[0].error.has_value());
-  EXPECT_EQ(events[0].error->code, ErrorCode::kDeadlineExceeded);
-  EXPECT_NE(events[0].error->message.find((*late)->id()), std::string::npos);
-  Drain(**blocker);
-}
-
-TEST(JobPool, CancelWhileQueuedReportsCancelledAndUnknownIdsAreRefused) {
-  auto pool = MakePool(1, 4);
-  std::promise<void> release;
-  auto gate = release.get_future().share();
-  auto blocker =
-      pool.Submit(std::chrono::steady_clock::now() + 10s, [gate](Job<Ev>&) { gate.wait(); });
-  auto queued = pool.Submit(std::chrono::steady_clock::now() + 10s, [](Job<Ev>& j) {
-    j.Push(Ev{42, std::nullopt});
-  });
-  ASSERT_TRUE(blocker.ok() && queued.ok());
-  EXPECT_TRUE(pool.Cancel((*queued)->id()));
-  EXPECT_FALSE(pool.Cancel("job-does-not-exist"));
-  release.set_value();
-  auto events = Drain(**queued);
-  ASSERT_EQ(events.size(), 1u);
-  ASSERT_TRUE(events[0].error.has_value());
-  EXPECT_EQ(events[0].error->code, ErrorCode::kCancelled);
-  Drain(**blocker);
+// A job that never gets a worker (it expired or was cancelled while queued) still ends with
+// one event saying why and naming the job.
+TEST(JobPool, AJobStoppedWhileQueuedSaysWhy) {
+  for (ErrorCode why : {ErrorCode::kDeadlineExceeded, ErrorCode::kCancelled}) {
+    auto pool = MakePool(1, 4);
+    Gate gate;
+    auto blocker = pool.Submit(In(10s), gate.Work());
+    auto queued = pool.Submit(In(why == ErrorCode::kDeadlineExceeded ? 1ms : 10s), Push42);
+    ASSERT_TRUE(blocker.ok() && queued.ok());
+    if (why == ErrorCode::kCancelled) {
+      EXPECT_TRUE(pool.Cancel((*queued)->id()));
+      EXPECT_FALSE(pool.Cancel("job-does-not-exist"));
+    } else {
+      std::this_thread::sleep_for(5ms);
+    }
+    gate.release.set_value();
+    auto events = Drain(**queued);
+    ASSERT_EQ(events.size(), 1u);
+    ASSERT_TRUE(events[0].error.has_value());
+    EXPECT_EQ(events[0].error->code, why);
+    EXPECT_NE(events[0].error->message.find((*queued)->id()), std::string::npos);
+    Drain(**blocker);
+  }
 }
 
 TEST(JobPool, AdmissionIsBoundedAndNamesTheLimit) {
   auto pool = MakePool(1, 2);
-  std::promise<void> release;
-  auto gate = release.get_future().share();
-  auto a = pool.Submit(std::chrono::steady_clock::now() + 10s, [gate](Job<Ev>&) { gate.wait(); });
-  auto b = pool.Submit(std::chrono::steady_clock::now() + 10s, [gate](Job<Ev>&) { gate.wait(); });
-  auto c = pool.Submit(std::chrono::steady_clock::now() + 10s, [](Job<Ev>&) {});
+  Gate gate;
+  auto a = pool.Submit(In(10s), gate.Work());
+  auto b = pool.Submit(In(10s), gate.Work());
+  auto c = pool.Submit(In(10s), Push42);
   ASSERT_TRUE(a.ok() && b.ok());
   ASSERT_FALSE(c.ok());
   EXPECT_EQ(c.error().code, ErrorCode::kResourceExhausted);
   EXPECT_NE(c.error().message.find("--max-jobs"), std::string::npos);
-  release.set_value();
+  gate.release.set_value();
   Drain(**a);
   Drain(**b);
   // Slots come back once jobs end.
   for (int i = 0; i < 100 && pool.in_flight() > 0; ++i) std::this_thread::sleep_for(1ms);
-  EXPECT_TRUE(pool.Submit(std::chrono::steady_clock::now() + 10s, [](Job<Ev>&) {}).ok());
+  EXPECT_TRUE(pool.Submit(In(10s), Push42).ok());
 }
 
 }  // namespace

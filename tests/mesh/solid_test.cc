@@ -182,13 +182,24 @@ TEST(MeshSolid, ExportsAgreeWithTheMesh) {
   EXPECT_NE(svg.find("class=\"sleeve\""), std::string::npos);
 }
 
-TEST(MeshSolid, SampleSketchesMeetTheTargets) {
+// The sample sketches' truth contours, by name; empty when the samples are not there.
+std::vector<std::pair<std::string, Polygon2>> SampleContours() {
+  std::vector<std::pair<std::string, Polygon2>> out;
   const std::string dir = RHEO_SKETCH_DIR;
-  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "sample sketches not found at " << dir;
+  if (!std::filesystem::exists(dir)) return out;
   for (const char* name : testing::kSampleNames) {
-    SCOPED_TRACE(name);
     Polygon2 contour;
-    ASSERT_TRUE(testing::ReadContour(dir + "/" + name + ".truth.json", contour));
+    EXPECT_TRUE(testing::ReadContour(dir + "/" + name + ".truth.json", contour)) << name;
+    out.emplace_back(name, std::move(contour));
+  }
+  return out;
+}
+
+TEST(MeshSolid, SampleSketchesMeetTheTargets) {
+  const auto samples = SampleContours();
+  if (samples.empty()) GTEST_SKIP() << "sample sketches not found at " << RHEO_SKETCH_DIR;
+  for (const auto& [name, contour] : samples) {
+    SCOPED_TRACE(name);
     auto r = BuildSolid(contour, MeshOptions());
     ASSERT_TRUE(r.ok()) << r.error().message;
     const QualityReport& q = r->quality;
@@ -206,42 +217,34 @@ TEST(MeshSolid, SampleSketchesMeetTheTargets) {
   }
 }
 
-TEST(MeshSolid, PaperDivisionIsValidOnSamples) {
-  const std::string dir = RHEO_SKETCH_DIR;
-  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "sample sketches not found at " << dir;
-  MeshOptions opt;
-  opt.division = Division::kPaper;
-  for (const char* name : testing::kSampleNames) {
-    SCOPED_TRACE(name);
-    Polygon2 contour;
-    ASSERT_TRUE(testing::ReadContour(dir + "/" + name + ".truth.json", contour));
-    auto r = BuildSolid(contour, opt);
-    ASSERT_TRUE(r.ok()) << r.error().message;
-    EXPECT_TRUE(r->quality.valid) << Failures(r->quality);
-    // The paper's cells meet the same targets as the default once smoothed.
-    EXPECT_GE(r->quality.min_dihedral_deg, 5.0);
-    EXPECT_GE(r->quality.min_volume_ratio, 0.01);
-    // Same Teddy surface sampled differently: volumes agree with the default division.
-    auto q = BuildSolid(contour, MeshOptions());
-    ASSERT_TRUE(q.ok());
-    EXPECT_NEAR(r->quality.surface_volume, q->quality.surface_volume,
-                0.1 * q->quality.surface_volume);
-  }
-}
-
-TEST(MeshSolid, HalfTheDefaultResolutionKeepsTheDihedralTarget) {
-  const std::string dir = RHEO_SKETCH_DIR;
-  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "sample sketches not found at " << dir;
-  MeshOptions opt;
-  opt.resolution = 0.004;
-  for (const char* name : testing::kSampleNames) {
-    SCOPED_TRACE(name);
-    Polygon2 contour;
-    ASSERT_TRUE(testing::ReadContour(dir + "/" + name + ".truth.json", contour));
-    auto r = BuildSolid(contour, opt);
-    ASSERT_TRUE(r.ok()) << r.error().message;
-    EXPECT_TRUE(r->quality.valid) << Failures(r->quality);
-    EXPECT_GE(r->quality.min_dihedral_deg, 5.0);
+// The paper's division at the default resolution, and the default division at half of it.
+TEST(MeshSolid, PaperDivisionAndHalfResolutionMeetTheTargets) {
+  const auto samples = SampleContours();
+  if (samples.empty()) GTEST_SKIP() << "sample sketches not found at " << RHEO_SKETCH_DIR;
+  struct Case {
+    const char* what;
+    Division division;
+    double resolution;        // [m]
+    double min_volume_ratio;  // asked of the smallest tetrahedron
+  };
+  for (const Case& c : {Case{"paper division", Division::kPaper, 0.008, 0.01},
+                        Case{"half resolution", Division::kQuality, 0.004, 0.0}}) {
+    MeshOptions opt;
+    opt.division = c.division;
+    opt.resolution = c.resolution;
+    for (const auto& [name, contour] : samples) {
+      SCOPED_TRACE(std::string(c.what) + " " + name);
+      auto r = BuildSolid(contour, opt);
+      ASSERT_TRUE(r.ok()) << r.error().message;
+      EXPECT_TRUE(r->quality.valid) << Failures(r->quality);
+      EXPECT_GE(r->quality.min_dihedral_deg, 5.0);
+      EXPECT_GE(r->quality.min_volume_ratio, c.min_volume_ratio);
+      // Same Teddy surface sampled differently: volumes agree with the default.
+      auto q = BuildSolid(contour, MeshOptions());
+      ASSERT_TRUE(q.ok());
+      EXPECT_NEAR(r->quality.surface_volume, q->quality.surface_volume,
+                  0.1 * q->quality.surface_volume);
+    }
   }
 }
 
