@@ -9,9 +9,11 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <thread>
 
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "rheo/v1/daemon.grpc.pb.h"
+#include "rheo/v1/device.grpc.pb.h"
 #include "rheo/v1/frames.grpc.pb.h"
 #include "rheo/v1/objects.grpc.pb.h"
 #include "rheo/v1/scene.grpc.pb.h"
@@ -421,6 +423,145 @@ int ParamSet(const Global& g, uint32_t instance, const std::string& preset,
   return s.ok() ? 0 : Fail(s);
 }
 
+// ---- device ----
+
+using DevStub = rheo::v1::DeviceService::Stub;
+
+void PrintDeviceStatus(const rheo::v1::DeviceStatus& st) {
+  auto v = [](const rheo::v1::Vec3& a) {
+    char b[96];
+    std::snprintf(b, sizeof b, "(%.4f, %.4f, %.4f)", a.x(), a.y(), a.z());
+    return std::string(b);
+  };
+  std::printf("device %s: %s\n", rheo::v1::DeviceKind_Name(st.kind()).c_str(), st.model().c_str());
+  std::printf("  connected %s, calibrated %s, emergency stop %s\n", st.connected() ? "yes" : "no",
+              st.calibrated() ? "yes" : "no", st.emergency_stopped() ? "ENGAGED" : "off");
+  std::string faults;
+  for (const auto& f : st.faults()) faults += (faults.empty() ? "" : ", ") + f;
+  std::printf("  faults: %s\n", faults.empty() ? "none" : faults.c_str());
+  if (st.kind() == rheo::v1::DEVICE_KIND_NONE) return;
+  std::printf("  grip %s m (device frame); proxy %s m; in contact %s (instance %u)\n",
+              v(st.pose().position()).c_str(), v(st.proxy_position()).c_str(),
+              st.in_contact() ? "yes" : "no", st.contact_instance_id());
+  std::printf("  hand force %s N (requested %s N), object force %s N\n",
+              v(st.wrench().force()).c_str(), v(st.requested_wrench().force()).c_str(),
+              v(st.object_force()).c_str());
+  if (st.string_tensions_size() > 0) {
+    std::printf("  tensions [N]:");
+    for (double t : st.string_tensions()) std::printf(" %.3f", t);
+    std::printf("  (minimum %.3f)\n", st.min_tension());
+  }
+  std::printf(
+      "  max force %.1f N, coupling stiffness %.0f N/m, tip radius %.1f mm, watchdog %.1f ms\n",
+      st.max_force(), st.max_stiffness(), st.tip_radius() * 1e3, st.watchdog_timeout_ms());
+  const auto& c = st.counters();
+  std::printf(
+      "  exchanges %llu, device errors %llu, protocol errors %llu, deadline misses %llu, watchdog "
+      "trips %llu, recoveries %llu, renderer errors %llu\n",
+      (unsigned long long)c.exchanges(), (unsigned long long)c.device_errors(),
+      (unsigned long long)c.protocol_errors(), (unsigned long long)c.deadline_misses(),
+      (unsigned long long)c.watchdog_trips(), (unsigned long long)c.recoveries(),
+      (unsigned long long)c.renderer_errors());
+  std::printf("  loop period p50 %.1f us, p99 %.1f us, max %.1f us; %llu late ticks\n",
+              st.loop_period().p50_us(), st.loop_period().p99_us(), st.loop_period().max_us(),
+              (unsigned long long)st.loop_late_ticks());
+  std::printf("  lease: %s\n", st.lease_holder().empty()
+                                   ? "free"
+                                   : (st.lease_holder() + " (" +
+                                      std::to_string(st.lease_expires_in_s()) + " s left)")
+                                         .c_str());
+}
+
+int DeviceStatus(const Global& g, bool json) {
+  rheo::v1::DeviceStatus st;
+  grpc::Status s = Unary<rheo::v1::DeviceService>(g, &DevStub::GetDeviceStatus,
+                                                  rheo::v1::GetDeviceStatusRequest(), &st);
+  if (!s.ok()) return Fail(s);
+  if (json) {
+    std::cout << ToJson(st, true);
+  } else {
+    PrintDeviceStatus(st);
+  }
+  return 0;
+}
+
+int DeviceCalibrate(const Global& g, const std::string& lease) {
+  rheo::v1::CalibrateRequest req;
+  req.set_lease_id(lease);
+  rheo::v1::CalibrateResponse r;
+  grpc::Status s = Unary<rheo::v1::DeviceService>(g, &DevStub::Calibrate, req, &r);
+  if (!s.ok()) return Fail(s);
+  PrintDeviceStatus(r.status());
+  return 0;
+}
+
+int DeviceEstop(const Global& g, bool clear, const std::string& lease) {
+  rheo::v1::EmergencyStopRequest req;
+  req.set_engage(!clear);
+  req.set_lease_id(lease);
+  rheo::v1::EmergencyStopResponse r;
+  grpc::Status s = Unary<rheo::v1::DeviceService>(g, &DevStub::EmergencyStop, req, &r);
+  if (!s.ok()) return Fail(s);
+  PrintDeviceStatus(r.status());
+  return 0;
+}
+
+int LeaseAcquire(const Global& g, const std::string& name, double duration) {
+  rheo::v1::AcquireLeaseRequest req;
+  req.set_client_name(name);
+  req.set_duration_s(duration);
+  rheo::v1::Lease l;
+  grpc::Status s = Unary<rheo::v1::DeviceService>(g, &DevStub::AcquireLease, req, &l);
+  if (!s.ok()) return Fail(s);
+  std::printf("%s\n", l.lease_id().c_str());
+  std::fprintf(stderr, "lease for %s, %.1f s; renew with: rheoctl device lease renew %s\n",
+               l.holder().c_str(), l.expires_in_s(), l.lease_id().c_str());
+  return 0;
+}
+
+int LeaseRenew(const Global& g, const std::string& id, double duration) {
+  rheo::v1::RenewLeaseRequest req;
+  req.set_lease_id(id);
+  req.set_duration_s(duration);
+  rheo::v1::Lease l;
+  grpc::Status s = Unary<rheo::v1::DeviceService>(g, &DevStub::RenewLease, req, &l);
+  if (!s.ok()) return Fail(s);
+  std::printf("%s %.1f s\n", l.lease_id().c_str(), l.expires_in_s());
+  return 0;
+}
+
+int LeaseRelease(const Global& g, const std::string& id) {
+  rheo::v1::ReleaseLeaseRequest req;
+  req.set_lease_id(id);
+  rheo::v1::ReleaseLeaseResponse r;
+  grpc::Status s = Unary<rheo::v1::DeviceService>(g, &DevStub::ReleaseLease, req, &r);
+  return s.ok() ? 0 : Fail(s);
+}
+
+int DeviceHand(const Global& g, const rheo::v1::SimulatedHandRequest& req, double report_s) {
+  rheo::v1::SimulatedHandResponse r;
+  grpc::Status s = Unary<rheo::v1::DeviceService>(g, &DevStub::SimulatedHand, req, &r);
+  if (!s.ok()) return Fail(s);
+  if (req.has_press())
+    std::printf("surface under the tool at y = %.4f m; hand target y = %.4f m (device frame)\n",
+                r.surface_y(), r.target().position().y());
+  if (report_s <= 0) return 0;
+  // Report the contact as the hand moves: one line every 100 ms.
+  const auto end = std::chrono::steady_clock::now() +
+                   std::chrono::milliseconds(static_cast<int64_t>(report_s * 1000));
+  while (std::chrono::steady_clock::now() < end) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    rheo::v1::DeviceStatus st;
+    s = Unary<rheo::v1::DeviceService>(g, &DevStub::GetDeviceStatus,
+                                       rheo::v1::GetDeviceStatusRequest(), &st);
+    if (!s.ok()) return Fail(s);
+    std::printf("grip y %+.4f m  contact %-3s  hand force y %+7.3f N  object force y %+7.3f N\n",
+                st.pose().position().y(), st.in_contact() ? "yes" : "no", st.wrench().force().y(),
+                st.object_force().y());
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -505,6 +646,44 @@ int main(int argc, char** argv) {
   param_set->add_option("ASSIGNMENTS", sets, "name=value ...");
   param_set->add_option("--preset", preset, "apply a preset first");
 
+  auto* device = app.add_subcommand("device", "the haptic device: status, lease, stop, hand");
+  device->require_subcommand(1);
+  std::string lease_id, lease_name;
+  double duration = 0, depth = 0.005, seconds = 1.0, report = -1;
+  bool clear = false, release_hand = false;
+  std::vector<double> hold;
+  auto* dev_status = device->add_subcommand("status", "pose, forces, tensions, faults, counters");
+  dev_status->add_flag("--json", json, "print the DeviceStatus message as JSON");
+  auto* dev_cal = device->add_subcommand(
+      "calibrate", "hold the grip at the frame centre; clears faults and the emergency stop");
+  dev_cal->add_option("--lease", lease_id, "lease id (needed while someone holds the lease)");
+  auto* dev_estop = device->add_subcommand(
+      "estop", "emergency stop: every motor to minimum tension until the lease holder clears it");
+  dev_estop->add_flag("--clear", clear, "clear the emergency stop (needs --lease)");
+  dev_estop->add_option("--lease", lease_id, "lease id");
+  auto* dev_lease = device->add_subcommand("lease", "the control lease (one holder at a time)");
+  dev_lease->require_subcommand(1);
+  auto* lease_acq = dev_lease->add_subcommand("acquire", "prints the lease id on stdout");
+  lease_acq->add_option("--name", lease_name, "shown to others as the holder");
+  lease_acq->add_option("--duration", duration, "lease length [s] (0: 10)");
+  auto* lease_renew = dev_lease->add_subcommand("renew", "extend a lease");
+  lease_renew->add_option("LEASE", lease_id)->required();
+  lease_renew->add_option("--duration", duration, "new length from now [s] (0: 10)");
+  auto* lease_rel = dev_lease->add_subcommand("release", "give the lease back");
+  lease_rel->add_option("LEASE", lease_id)->required();
+  auto* dev_push = device->add_subcommand(
+      "push", "sim-spidar-g: the emulated hand presses the tool into the object below it");
+  dev_push->add_option("--depth", depth, "how far below the surface the hand aims [m]")
+      ->capture_default_str();
+  dev_push->add_option("--seconds", seconds, "ramp time [s]")->capture_default_str();
+  dev_push->add_option("--lease", lease_id, "lease id (needed while someone holds the lease)");
+  dev_push->add_option("--report", report,
+                       "print the contact every 100 ms for this long [s] (default: ramp + 1 s)");
+  auto* dev_hand = device->add_subcommand("hand", "sim-spidar-g: hold the grip or let it go");
+  dev_hand->add_option("--hold", hold, "hold at x y z, device frame [m]")->expected(3);
+  dev_hand->add_flag("--release", release_hand, "let go of the grip");
+  dev_hand->add_option("--lease", lease_id, "lease id");
+
   auto* contour = app.add_subcommand("contour", "extract the contour of a sketch (nothing stored)");
   contour->add_option("FILE", file, "sketch file")->required()->check(CLI::ExistingFile);
   contour->add_option("--epsilon", epsilon, "vectorization tolerance [px]");
@@ -536,5 +715,34 @@ int main(int argc, char** argv) {
   if (*step) return SceneControl(g, rheo::v1::RUN_COMMAND_STEP);
   if (*param_list) return ParamList(g, instance);
   if (*param_set) return ParamSet(g, instance, preset, sets);
+  if (*dev_status) return DeviceStatus(g, json);
+  if (*dev_cal) return DeviceCalibrate(g, lease_id);
+  if (*dev_estop) return DeviceEstop(g, clear, lease_id);
+  if (*lease_acq) return LeaseAcquire(g, lease_name, duration);
+  if (*lease_renew) return LeaseRenew(g, lease_id, duration);
+  if (*lease_rel) return LeaseRelease(g, lease_id);
+  if (*dev_push) {
+    rheo::v1::SimulatedHandRequest req;
+    req.set_lease_id(lease_id);
+    req.mutable_press()->set_depth_m(depth);
+    req.mutable_press()->set_seconds(seconds);
+    return DeviceHand(g, req, report < 0 ? seconds + 1.0 : report);
+  }
+  if (*dev_hand) {
+    rheo::v1::SimulatedHandRequest req;
+    req.set_lease_id(lease_id);
+    if (release_hand) {
+      req.set_release(true);
+    } else if (hold.size() == 3) {
+      req.mutable_hold()->mutable_position()->set_x(hold[0]);
+      req.mutable_hold()->mutable_position()->set_y(hold[1]);
+      req.mutable_hold()->mutable_position()->set_z(hold[2]);
+      req.mutable_hold()->mutable_orientation()->set_w(1.0);
+    } else {
+      std::cerr << "INVALID_ARGUMENT: give --hold x y z or --release\n";
+      return 3;
+    }
+    return DeviceHand(g, req, 0);
+  }
   return 1;
 }

@@ -11,11 +11,15 @@ Engine::Engine(EngineOptions options)
 
 Engine::~Engine() {
   Stop();
-  for (int i = 0; i < slot_count_; ++i) delete slots_[i].object;
+  for (int i = 0; i < slot_count_; ++i) {
+    delete slots_[i].contact;
+    delete slots_[i].object;
+  }
   slot_count_ = 0;
   DrainRetired();
   Command c;
   while (commands_.Pop(c)) {
+    delete c.contact;
     delete c.object;
     delete c.params;
   }
@@ -49,6 +53,7 @@ bool Engine::WaitApplied(uint64_t seq, int64_t timeout_ns) const {
 void Engine::DrainRetired() {
   Retired r;
   while (retired_.pop(r)) {
+    delete r.contact;
     delete r.object;
     delete r.params;
   }
@@ -78,16 +83,17 @@ void Engine::Apply(const Command& c) {
     case Command::Type::kStep: step_once_ = true; break;
     case Command::Type::kAddObject:
       if (c.object && slot_count_ < kMaxSceneObjects && FindSlot(c.instance_id) < 0) {
-        slots_[slot_count_++] = Slot{c.instance_id, c.object};
+        slots_[slot_count_++] = EngineSlot{c.instance_id, c.object, c.contact};
         ++scene_revision_;
       } else {
-        Retire({c.object, nullptr});  // the service checked capacity; never leak
+        Retire({c.object, nullptr, c.contact});  // the service checked capacity; never leak
       }
       break;
     case Command::Type::kRemoveObject: {
       int i = FindSlot(c.instance_id);
       if (i >= 0) {
-        Retire({slots_[i].object, nullptr});
+        if (device_) device_->Forget(slots_[i]);
+        Retire({slots_[i].object, nullptr, slots_[i].contact});
         slots_[i] = slots_[slot_count_ - 1];
         --slot_count_;
         ++scene_revision_;
@@ -100,6 +106,11 @@ void Engine::Apply(const Command& c) {
       Retire({nullptr, c.params});
       break;
     }
+    case Command::Type::kDeviceCalibrate:
+    case Command::Type::kDeviceClear:
+    case Command::Type::kSetToolOrigin:
+      if (device_) device_->Apply(c);
+      break;
     case Command::Type::kNone: break;
   }
   commands_applied_.fetch_add(1, std::memory_order_relaxed);
@@ -111,6 +122,7 @@ void Engine::Tick(const rt::TickInfo& info) {
   // Bounded work per tick: a flood of commands is spread over ticks.
   for (int i = 0; i < 16 && commands_.Pop(c); ++i) Apply(c);
 
+  if (device_) device_->BeforeStep(info);
   const bool paused = paused_.load(std::memory_order_relaxed);
   if (!paused || step_once_) {
     for (int i = 0; i < slot_count_; ++i) {
@@ -124,7 +136,14 @@ void Engine::Tick(const rt::TickInfo& info) {
   sim_time_.store(time, std::memory_order_relaxed);
   object_count_.store(slot_count_, std::memory_order_relaxed);
 
+  if (device_) {
+    device_->AfterStep(info, std::span<EngineSlot>(slots_.data(), slot_count_), &tool_scratch_);
+    tool_scratch_.tick = info.tick;
+    tool_.Store(tool_scratch_);
+  }
+
   LoopFrame& f = frames_.back();
+  f.tool = tool_scratch_;
   f.tick = info.tick;
   f.sim_time = time;
   f.paused = paused;

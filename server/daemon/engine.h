@@ -6,8 +6,10 @@
 #include <boost/lockfree/spsc_queue.hpp>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
+#include "daemon/seq_slot.h"
 #include "rt/command_queue.h"
 #include "rt/loop.h"
 #include "rt/triple_buffer.h"
@@ -17,6 +19,13 @@ namespace rheo::daemon {
 
 /// Most objects one scene holds at once.
 inline constexpr int kMaxSceneObjects = 16;
+
+/// Per-object state of the haptic side (the device link's renderer), opaque to the engine. It is
+/// built outside the loop, handed over with kAddObject and retired with the object.
+class ObjectContact {
+ public:
+  virtual ~ObjectContact() = default;
+};
 
 /// A scene command, plain data so the queue never allocates. Payloads that need memory are
 /// allocated by the sender and handed over by pointer; the loop gives them back through the
@@ -28,21 +37,88 @@ struct Command {
     kResume,
     kReset,
     kStep,
-    kAddObject,      // object: ownership passes to the loop
-    kRemoveObject,   // instance_id
-    kSetParameters,  // instance_id, params: copied into the object, then retired
+    kAddObject,        // object: ownership passes to the loop
+    kRemoveObject,     // instance_id
+    kSetParameters,    // instance_id, params: copied into the object, then retired
+    kDeviceCalibrate,  // the device link calibrates on the loop thread
+    kDeviceClear,      // clear an emergency stop and latched faults
+    kSetToolOrigin,    // vec: scene position of the device frame's origin [m]
   };
   Type type = Type::kNone;
   uint64_t seq = 0;  // assigned by Engine::Submit; the loop acknowledges it in applied_seq
   uint32_t instance_id = 0;
   sim::SimObject* object = nullptr;
   sim::Parameters* params = nullptr;
+  ObjectContact* contact = nullptr;  // kAddObject: ownership passes to the loop (may be null)
+  std::array<double, 3> vec{};       // kSetToolOrigin [m]
 };
 
 /// Memory the loop no longer uses, to be freed by another thread.
 struct Retired {
   sim::SimObject* object = nullptr;
   sim::Parameters* params = nullptr;
+  ObjectContact* contact = nullptr;
+};
+
+/// The haptic tool as the loop saw it in one tick: plain data, published in every frame and in a
+/// lock-free slot that any thread may read (status, the network tool's feedback).
+struct ToolTelemetry {
+  uint64_t tick = 0;
+  bool present = false;  // a device is attached
+  bool connected = false;
+  bool calibrated = false;
+  bool in_contact = false;
+  bool emergency_stopped = false;
+  bool watchdog_tripped = false;
+  uint32_t faults = 0;                      // drivers::Fault bits
+  uint32_t contact_instance = 0;            // scene instance the tool renders against (0: none)
+  int32_t num_motors = 0;                   // entries used in tensions and lengths
+  std::array<double, 3> device_position{};  // grip centre, scene frame [m]
+  std::array<double, 4> device_orientation{1, 0, 0, 0};  // unit quaternion w, x, y, z
+  std::array<double, 3> proxy{};                         // proxy centre, scene frame [m]
+  std::array<double, 3> tool_origin{};       // scene position of the device frame's origin [m]
+  std::array<double, 3> requested_force{};   // after the device's limits [N]
+  std::array<double, 3> requested_torque{};  // [N m]
+  std::array<double, 3> displayed_force{};   // what the device displays on the hand [N]
+  std::array<double, 3> displayed_torque{};  // [N m]
+  std::array<double, 3> object_force{};      // sum of the node forces put on the object [N]
+  std::array<double, 8> tensions{};          // commanded string tensions (num_motors) [N]
+  std::array<double, 8> lengths{};           // measured string lengths (num_motors) [m]
+  double tip_radius = 0.0;                   // [m]
+  double stiffness = 0.0;                    // coupling stiffness in use [N/m]
+  uint64_t exchanges = 0;                    // successful device exchanges
+  uint64_t device_errors = 0;                // exchanges that failed
+  uint64_t protocol_errors = 0;              // the driver's count of bad or missing replies
+  uint64_t deadline_misses = 0;  // ticks whose device exchange ended past half a period late
+  uint64_t watchdog_trips = 0;
+  uint64_t recoveries = 0;       // automatic restarts after a watchdog trip
+  uint64_t renderer_errors = 0;  // renderer updates that failed (no force that tick)
+  uint64_t calibrations = 0;     // successful calibrations
+  uint64_t calibration_failures = 0;
+  uint64_t input_seq = 0;  // network tool: the last input sequence number the loop used
+};
+
+/// One scene object as the loop holds it.
+struct EngineSlot {
+  uint32_t instance_id = 0;
+  sim::SimObject* object = nullptr;
+  ObjectContact* contact = nullptr;
+};
+
+/// The haptic side of each tick (DeviceLink, in rheod_device). Every method runs on the loop
+/// thread and must not allocate, log or block.
+class TickDevice {
+ public:
+  virtual ~TickDevice() = default;
+  /// Before the simulation step: exchange with the device.
+  virtual void BeforeStep(const rt::TickInfo& info) = 0;
+  /// After the step: contact against `slots`, node forces, the device command; fills `out`.
+  virtual void AfterStep(const rt::TickInfo& info, std::span<EngineSlot> slots,
+                         ToolTelemetry* out) = 0;
+  /// Device commands (kDeviceCalibrate, kDeviceClear, kSetToolOrigin).
+  virtual void Apply(const Command& command) = 0;
+  /// The object in `slot` is leaving the loop: forget any pointer into it.
+  virtual void Forget(const EngineSlot& slot) = 0;
 };
 
 /// One object's part of a frame.
@@ -66,6 +142,7 @@ struct LoopFrame {
   uint32_t object_count = 0;
   std::array<FrameObject, kMaxSceneObjects> objects{};
   std::vector<float> positions;  // x, y, z per vertex [m]; capacity fixed at start
+  ToolTelemetry tool;
 };
 
 struct EngineOptions {
@@ -80,6 +157,8 @@ class Engine {
   explicit Engine(EngineOptions options);
   ~Engine();
 
+  /// Attaches the haptic side; call before Start(). The engine does not own it.
+  void AttachDevice(TickDevice* device) { device_ = device; }
   void Start();
   void Stop();
 
@@ -96,6 +175,9 @@ class Engine {
   /// Frame reader side: only one thread (the frame hub) may call these.
   bool AcquireFrame() { return frames_.Acquire(); }
   const LoopFrame& frame() const { return frames_.front(); }
+
+  /// The tool as of the last tick, from any thread.
+  ToolTelemetry tool() const { return tool_.Load(); }
 
   const rt::Loop& loop() const { return loop_; }
   const EngineOptions& options() const { return options_; }
@@ -126,12 +208,12 @@ class Engine {
   std::atomic<double> sim_time_{0.0};
   std::atomic<int> object_count_{0};
 
+  TickDevice* device_ = nullptr;
+  SeqSlot<ToolTelemetry> tool_;
+
   // Loop-thread state.
-  struct Slot {
-    uint32_t instance_id = 0;
-    sim::SimObject* object = nullptr;
-  };
-  std::array<Slot, kMaxSceneObjects> slots_{};
+  std::array<EngineSlot, kMaxSceneObjects> slots_{};
+  ToolTelemetry tool_scratch_;
   int slot_count_ = 0;
   bool step_once_ = false;
   uint64_t last_applied_seq_ = 0;

@@ -29,6 +29,11 @@ struct Flags {
   std::string listen = "127.0.0.1:50051";
   std::string data_dir;
   std::string device = "none";
+  std::string device_config;  // "": the X5 frame file from the install or the source tree
+  std::string device_port;
+  double watchdog_ms = 3.0;
+  double reply_timeout_ms = 0.0;  // 0: 2 ms for hardware, 20 ms for the emulator
+  double tool_radius = 3e-3;
   std::string log_level = "info";
   double rate_hz = 1000.0;
   bool realtime = true;
@@ -72,6 +77,22 @@ class DataDirLock {
   int fd_ = -1;
 };
 
+// The X5 frame file: next to an installed rheod (share/rheo/devices), else the source tree.
+std::string DefaultDeviceConfig(const char* argv0) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) exe = fs::absolute(argv0, ec);
+  const fs::path installed =
+      exe.parent_path().parent_path() / "share/rheo/devices/spidar_g_x5.json";
+  if (fs::exists(installed, ec)) return installed.string();
+#ifdef RHEO_SOURCE_DEVICES
+  const fs::path source = fs::path(RHEO_SOURCE_DEVICES) / "spidar_g_x5.json";
+  if (fs::exists(source, ec)) return source.string();
+#endif
+  return installed.string();
+}
+
 std::string DefaultDataDir() {
   if (const char* x = std::getenv("XDG_DATA_HOME"); x && *x) return std::string(x) + "/rheo";
   if (const char* h = std::getenv("HOME"); h && *h) return std::string(h) + "/.local/share/rheo";
@@ -88,8 +109,24 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--data-dir", flags.data_dir, "where objects and recordings are stored")
       ->default_str("$XDG_DATA_HOME/rheo");
-  app.add_option("--device", flags.device, "haptic device")
-      ->check(CLI::IsMember({"none"}))
+  app.add_option("--device", flags.device,
+                 "haptic device: none, sim-spidar-g (the emulator behind the real driver), "
+                 "spidar-g (hardware on --device-port) or network (a client's ToolStream)")
+      ->check(CLI::IsMember({"none", "sim-spidar-g", "spidar-g", "network"}))
+      ->capture_default_str();
+  app.add_option("--device-config", flags.device_config, "SPIDAR-G frame file")
+      ->default_str("share/rheo/devices/spidar_g_x5.json");
+  app.add_option("--device-port", flags.device_port, "serial port of the SPIDAR-G boards");
+  app.add_option("--watchdog-timeout", flags.watchdog_ms,
+                 "loop stall that safe-stops the device [ms]")
+      ->check(CLI::Range(0.5, 100.0))
+      ->capture_default_str();
+  app.add_option("--device-reply-timeout", flags.reply_timeout_ms,
+                 "longest wait for a board reply [ms] (0: 2 hardware, 20 emulator)")
+      ->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
+  app.add_option("--tool-radius", flags.tool_radius, "haptic tool tip radius [m]")
+      ->check(CLI::Range(1e-4, 0.05))
       ->capture_default_str();
   app.add_option("--log-level", flags.log_level, "trace, debug, info, warn, error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
@@ -144,11 +181,54 @@ int main(int argc, char** argv) {
     return JobEvent{{}, std::move(e)};
   });
 
+  // The device is opened and calibrated before the loop starts; the loop then owns its ticks.
+  std::unique_ptr<DeviceLink> device;
+  rheo::v1::DeviceKind device_kind = rheo::v1::DEVICE_KIND_NONE;
+  if (flags.device != "none") {
+    DeviceLinkOptions dopts;
+    if (flags.device == "sim-spidar-g") {
+      dopts.kind = DeviceKind::kSimSpidarG;
+      device_kind = rheo::v1::DEVICE_KIND_SIM_SPIDAR_G;
+    } else if (flags.device == "spidar-g") {
+      dopts.kind = DeviceKind::kSpidarG;
+      device_kind = rheo::v1::DEVICE_KIND_SPIDAR_G;
+    } else {
+      dopts.kind = DeviceKind::kNetwork;
+      device_kind = rheo::v1::DEVICE_KIND_NETWORK;
+    }
+    dopts.config_path =
+        flags.device_config.empty() ? DefaultDeviceConfig(argv[0]) : flags.device_config;
+    dopts.port = flags.device_port;
+    dopts.watchdog_timeout_ns = static_cast<int64_t>(flags.watchdog_ms * 1e6);
+    const double reply_ms = flags.reply_timeout_ms > 0              ? flags.reply_timeout_ms
+                            : dopts.kind == DeviceKind::kSimSpidarG ? 20.0
+                                                                    : 2.0;
+    dopts.reply_timeout_us = static_cast<int>(reply_ms * 1e3);
+    dopts.realtime = flags.realtime;
+    dopts.tool_radius = flags.tool_radius;
+    auto opened = DeviceLink::Open(dopts);
+    if (!opened.ok()) {
+      spdlog::error("device {}: {}", flags.device, opened.error().message);
+      return 1;
+    }
+    device = std::move(opened).value();
+    spdlog::info(
+        "device {}: {} ({}) calibrated{}{}; watchdog {:.1f} ms{}; coupling stiffness {:.0f} N/m, "
+        "tool radius {:.1f} mm, max force {:.1f} N",
+        flags.device, device->info().name, device->info().model,
+        dopts.kind == DeviceKind::kNetwork ? "" : ", frame file ",
+        dopts.kind == DeviceKind::kNetwork ? "" : dopts.config_path, flags.watchdog_ms,
+        dopts.kind == DeviceKind::kNetwork ? " (not used: no motors)" : "",
+        device->effective_stiffness(), dopts.tool_radius * 1e3, device->info().max_force);
+  }
+  LeaseManager leases;
+
   EngineOptions eopts;
   eopts.loop.period_ns = static_cast<int64_t>(1e9 / flags.rate_hz);
   eopts.loop.realtime_priority = flags.realtime;
   eopts.loop.lock_memory = flags.realtime;
   Engine engine(eopts);
+  if (device) engine.AttachDevice(device.get());
   engine.Start();
   const auto& env = engine.loop().environment();
   spdlog::info("loop running at {:.0f} Hz (SCHED_FIFO {}, memory locked {})", flags.rate_hz,
@@ -165,7 +245,9 @@ int main(int argc, char** argv) {
   ctx.hub = &hub;
   ctx.version = RHEO_VERSION;
   ctx.data_dir = flags.data_dir;
-  ctx.device = rheo::v1::DEVICE_KIND_NONE;
+  ctx.device = device_kind;
+  ctx.device_link = device.get();
+  ctx.leases = &leases;
   ctx.started = std::chrono::steady_clock::now();
   ctx.shutting_down = &shutting_down;
   ctx.store = store->get();
@@ -216,6 +298,11 @@ int main(int argc, char** argv) {
   io.run();
   server->Wait();
   engine.Stop();
+  if (device) {
+    const std::string last = device->Shutdown();
+    spdlog::info("device {} safe-stopped and closed", flags.device);
+    if (!last.empty()) spdlog::info("{}", last);
+  }
   const auto& s = engine.loop().stats();
   spdlog::info("stopped after {} ticks ({} late, period p99 {:.1f} us)", s.ticks.load(),
                s.late_ticks.load(), s.period.Quantile(0.99) / 1e3);

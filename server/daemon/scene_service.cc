@@ -126,6 +126,42 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   if (!target.allFinite()) return ToGrpc(InvalidArgument("position has a non-finite coordinate"));
   object->Translate(target - centre);
 
+  // The haptic tool: the first object sets where the device's workspace sits (its centre 5 mm
+  // above the object's highest point), and every object gets its renderer here, off the loop.
+  std::unique_ptr<ObjectContact> contact;
+  if (ctx_.device_link) {
+    const ToolTelemetry t = ctx_.engine->tool();
+    Vec3 origin(t.tool_origin[0], t.tool_origin[1], t.tool_origin[2]);
+    if (ctx_.scene->size() == 0) {
+      // Above the highest point, where the surface faces up and a press does not push sideways.
+      Vec3 top = object->positions()[0];
+      for (const Vec3& x : object->positions())
+        if (x.y() > top.y()) top = x;
+      origin = top + Vec3(0, ctx_.device_link->renderer_config().tool_radius + 0.005, 0);
+      Command oc;
+      oc.type = Command::Type::kSetToolOrigin;
+      oc.vec = {origin.x(), origin.y(), origin.z()};
+      if (ctx_.engine->Submit(oc) == 0)
+        return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                            "the loop's command queue (1024 entries) is full; retry shortly");
+    }
+    const Vec3 tool = origin + Vec3(t.device_position[0] - t.tool_origin[0],
+                                    t.device_position[1] - t.tool_origin[1],
+                                    t.device_position[2] - t.tool_origin[2]);
+    double min_mass = 0.0;
+    for (const auto& f : stored->mesh.surface)
+      for (int32_t v : f) {
+        const double m = object->model().mass[v];
+        if (min_mass == 0.0 || m < min_mass) min_mass = m;
+      }
+    auto made =
+        ctx_.device_link->MakeContact(stored->mesh.surface, object->positions(), tool, min_mass);
+    if (!made.ok())
+      return ToGrpc(Error{made.error().code, "the haptic renderer refused this object's surface: " +
+                                                 made.error().message});
+    contact = std::move(made).value();
+  }
+
   auto entry = std::make_shared<SceneEntry>();
   entry->instance_id = ctx_.scene->NextId();
   entry->object_id = stored->id;
@@ -143,6 +179,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   c.type = Command::Type::kAddObject;
   c.instance_id = entry->instance_id;
   c.object = object.get();
+  c.contact = contact.get();
   uint64_t seq = ctx_.engine->Submit(c);
   if (seq == 0) {
     ctx_.scene->Erase(entry->instance_id);
@@ -150,6 +187,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
                         "the loop's command queue (1024 entries) is full; retry shortly");
   }
   object.release();  // the loop owns it now
+  contact.release();
   if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs))
     return grpc::Status(grpc::StatusCode::UNAVAILABLE,
                         "the loop did not take the object within 2 s");

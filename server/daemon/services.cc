@@ -19,6 +19,34 @@ void FillPercentiles(const rt::Histogram& h, v1::Percentiles* out) {
   out->set_count(h.count());
 }
 
+void SetVec(const std::array<double, 3>& a, v1::Vec3* out) {
+  out->set_x(a[0]);
+  out->set_y(a[1]);
+  out->set_z(a[2]);
+}
+
+void FillFrameTool(const ToolTelemetry& t, const DaemonContext& ctx, v1::ToolState* out) {
+  out->set_present(true);
+  SetVec(t.device_position, out->mutable_device_pose()->mutable_position());
+  auto* q = out->mutable_device_pose()->mutable_orientation();
+  q->set_w(t.device_orientation[0]);
+  q->set_x(t.device_orientation[1]);
+  q->set_y(t.device_orientation[2]);
+  q->set_z(t.device_orientation[3]);
+  SetVec(t.proxy, out->mutable_proxy_position());
+  out->set_tip_radius(t.tip_radius);
+  out->set_in_contact(t.in_contact);
+  SetVec(t.displayed_force, out->mutable_wrench()->mutable_force());
+  SetVec(t.displayed_torque, out->mutable_wrench()->mutable_torque());
+  SetVec(t.requested_force, out->mutable_requested()->mutable_force());
+  SetVec(t.requested_torque, out->mutable_requested()->mutable_torque());
+  SetVec(t.object_force, out->mutable_object_force());
+  if (ctx.leases) out->set_lease_holder(ctx.leases->Holder().first);
+  for (const std::string& f : DeviceFaultList(t)) out->add_faults(f);
+  out->set_contact_instance_id(t.contact_instance);
+  out->set_emergency_stopped(t.emergency_stopped);
+}
+
 grpc::Status ShuttingDown() {
   return grpc::Status(grpc::StatusCode::UNAVAILABLE, "rheod is shutting down");
 }
@@ -51,6 +79,7 @@ grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetSta
   l->set_commands_applied(ctx_.engine->commands_applied());
   l->set_commands_rejected(ctx_.engine->commands_rejected());
   out->set_device(ctx_.device);
+  if (ctx_.device_link) out->add_capabilities("device");
   out->set_frame_clients(static_cast<uint32_t>(ctx_.hub->clients()));
   out->set_scene_objects(static_cast<uint32_t>(ctx_.scene->size()));
   if (auto n = ctx_.store->Count(); n.ok()) out->set_stored_objects(static_cast<uint32_t>(*n));
@@ -124,6 +153,7 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
         os->mutable_positions()->Add(p, p + 3u * fo.vertex_count);
       }
     }
+    if (f.tool.present) FillFrameTool(f.tool, ctx_, frame.mutable_tool());
     frame.mutable_loop()->set_ticks(f.ticks);
     frame.mutable_loop()->set_late_ticks(f.late_ticks);
     frame.mutable_loop()->set_last_work_us(f.work_ns / 1e3);
@@ -142,50 +172,6 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
     }
   }
   return grpc::Status::OK;
-}
-
-// ---- DeviceService ----
-
-grpc::Status DeviceServiceImpl::GetDeviceStatus(grpc::ServerContext*,
-                                                const v1::GetDeviceStatusRequest*,
-                                                v1::DeviceStatus* out) {
-  out->set_kind(ctx_.device);
-  out->set_model("none");
-  out->set_connected(false);
-  return grpc::Status::OK;
-}
-
-namespace {
-grpc::Status NoDevice() {
-  return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
-                      "no haptic device is attached: start rheod with --device sim-spidar-g, "
-                      "spidar-g or network");
-}
-}  // namespace
-
-grpc::Status DeviceServiceImpl::Calibrate(grpc::ServerContext*, const v1::CalibrateRequest*,
-                                          v1::CalibrateResponse*) {
-  return NoDevice();
-}
-grpc::Status DeviceServiceImpl::AcquireLease(grpc::ServerContext*, const v1::AcquireLeaseRequest*,
-                                             v1::Lease*) {
-  return NoDevice();
-}
-grpc::Status DeviceServiceImpl::RenewLease(grpc::ServerContext*, const v1::RenewLeaseRequest*,
-                                           v1::Lease*) {
-  return NoDevice();
-}
-grpc::Status DeviceServiceImpl::ReleaseLease(grpc::ServerContext*, const v1::ReleaseLeaseRequest*,
-                                             v1::ReleaseLeaseResponse*) {
-  return NoDevice();
-}
-grpc::Status DeviceServiceImpl::EmergencyStop(grpc::ServerContext*, const v1::EmergencyStopRequest*,
-                                              v1::EmergencyStopResponse*) {
-  return NoDevice();
-}
-grpc::Status DeviceServiceImpl::ToolStream(
-    grpc::ServerContext*, grpc::ServerReaderWriter<v1::ToolFeedback, v1::ToolInput>*) {
-  return NoDevice();
 }
 
 }  // namespace rheo::daemon

@@ -5,9 +5,11 @@
 #include <chrono>
 #include <string>
 
+#include "daemon/device_link.h"
 #include "daemon/engine.h"
 #include "daemon/frame_hub.h"
 #include "daemon/jobs.h"
+#include "daemon/lease.h"
 #include "daemon/object_builder.h"
 #include "daemon/scene.h"
 #include "daemon/store.h"
@@ -33,6 +35,8 @@ struct DaemonContext {
   std::string listen_address;
   std::string data_dir;
   v1::DeviceKind device = v1::DEVICE_KIND_NONE;
+  DeviceLink* device_link = nullptr;  // null with --device none
+  LeaseManager* leases = nullptr;
   std::chrono::steady_clock::time_point started;
   std::atomic<bool>* shutting_down = nullptr;
   Store* store = nullptr;
@@ -41,6 +45,9 @@ struct DaemonContext {
   BuildLimits build_limits;
   std::chrono::seconds job_timeout{120};
 };
+
+/// Spells the device's faults for people: the driver's bits plus the daemon's stop states.
+std::vector<std::string> DeviceFaultList(const ToolTelemetry& t);
 
 /// Loads a stored object, builds its simulation and hands it to the loop (AddToScene and
 /// CreateObject with add_to_scene).
@@ -123,6 +130,8 @@ class DeviceServiceImpl final : public v1::DeviceService::Service {
                              v1::EmergencyStopResponse*) override;
   grpc::Status ToolStream(grpc::ServerContext*,
                           grpc::ServerReaderWriter<v1::ToolFeedback, v1::ToolInput>*) override;
+  grpc::Status SimulatedHand(grpc::ServerContext*, const v1::SimulatedHandRequest*,
+                             v1::SimulatedHandResponse*) override;
 
  private:
   const DaemonContext& ctx_;

@@ -1,0 +1,327 @@
+#include "daemon/device_link.h"
+
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "drivers/device_factory.h"
+
+namespace rheo::daemon {
+namespace {
+
+class RendererContact final : public ObjectContact {
+ public:
+  explicit RendererContact(haptics::Renderer r) : renderer(std::move(r)) {}
+  haptics::Renderer renderer;
+};
+
+std::array<double, 3> A3(const Vec3& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
+// The frame file's optional "haptics" block: what the renderer needs to know about the
+// mechanism beyond the driver's limits.
+Result<double> ReadDeviceDamping(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return NotFound("device config " + path + ": cannot open");
+  std::stringstream text;
+  text << in.rdbuf();
+  auto j = nlohmann::json::parse(text.str(), nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) return InvalidArgument("device config " + path + ": not valid JSON");
+  const auto h = j.find("haptics");
+  if (h == j.end()) return 2.0;
+  const auto d = h->find("device_damping_n_s_per_m");
+  if (d == h->end()) return 2.0;
+  if (!d->is_number() || !(d->get<double>() > 0.0) || d->get<double>() > 1e3)
+    return InvalidArgument("device config " + path +
+                           ": haptics.device_damping_n_s_per_m must be in (0, 1000] N s/m");
+  return d->get<double>();
+}
+
+}  // namespace
+
+const char* DeviceKindName(DeviceKind kind) {
+  switch (kind) {
+    case DeviceKind::kNone: return "none";
+    case DeviceKind::kSimSpidarG: return "sim-spidar-g";
+    case DeviceKind::kSpidarG: return "spidar-g";
+    case DeviceKind::kNetwork: return "network";
+  }
+  return "?";
+}
+
+Result<std::unique_ptr<DeviceLink>> DeviceLink::Open(const DeviceLinkOptions& options) {
+  if (options.kind == DeviceKind::kNone)
+    return InvalidArgument("DeviceLink::Open: kind none has no device");
+  std::unique_ptr<DeviceLink> link(new DeviceLink(options));
+  haptics::RendererConfig rc;
+  rc.tool_radius = options.tool_radius;
+  if (options.kind == DeviceKind::kNetwork) {
+    auto net = std::make_unique<NetworkDevice>();
+    link->network_ = net.get();
+    link->device_ = std::move(net);
+  } else {
+    auto config = drivers::LoadSpidarConfigFile(options.config_path);
+    if (!config.ok()) return config.error();
+    auto damping = ReadDeviceDamping(options.config_path);
+    if (!damping.ok()) return damping.error();
+    rc.device.damping = *damping;
+    std::string port = options.port;
+    if (options.kind == DeviceKind::kSimSpidarG) {
+      drivers::EmulatorOptions eo;
+      // The emulated mechanism has the damping the frame file states, so the renderer's
+      // passivity bound holds for it as it would for the hardware.
+      eo.linear_damping = *damping;
+      eo.realtime_priority = options.realtime ? 85 : 0;
+      auto emu = drivers::SpidarEmulator::Start(*config, eo);
+      if (!emu.ok()) return emu.error();
+      link->emulator_ = std::move(emu).value();
+      link->emulator_->HoldHand(drivers::Pose());
+      port = link->emulator_->pty_path();
+    }
+    if (port.empty())
+      return InvalidArgument("--device spidar-g needs --device-port (e.g. /dev/ttyUSB0)");
+    drivers::SpidarOpenOptions oo;
+    oo.reply_timeout_us = options.reply_timeout_us;
+    auto dev = drivers::OpenSpidarG(*config, port, oo);
+    if (!dev.ok()) return dev.error();
+    link->min_tension_ = config->strings[0].min_tension;
+    for (const auto& s : config->strings)
+      link->min_tension_ = std::min(link->min_tension_, s.min_tension);
+    link->device_ = std::move(dev).value();
+  }
+  drivers::HapticDevice& d = *link->device_;
+  if (options.kind == DeviceKind::kNetwork)  // OpenSpidarG has opened the SPIDAR-G already
+    if (Status s = d.Open(); !s.ok()) return s.error();
+  if (Status s = d.Calibrate(); !s.ok())
+    return Error{s.error().code, "calibrating " + d.info().name + ": " + s.error().message +
+                                     " (hold the grip at the frame centre and retry)"};
+  const drivers::DeviceInfo& info = d.info();
+  rc.device.max_force = info.max_force;
+  rc.device.max_force_rate = info.max_force_rate;
+  rc.coupling_damping = 0.2 * rc.device.damping;
+  if (Status s = rc.Validate(); !s.ok()) return s.error();
+  link->renderer_config_ = rc;
+  link->effective_stiffness_ = std::min(
+      {rc.coupling_stiffness, rc.device.max_stiffness,
+       rc.stability_margin * 2.0 * (rc.device.damping - rc.coupling_damping) / rc.device.tick});
+  if (options.kind != DeviceKind::kNetwork) {
+    // Armed by the first tick: the loop may start a while after this.
+    link->dog_ = std::make_unique<drivers::Watchdog>(d, options.watchdog_timeout_ns);
+    link->dog_thread_ =
+        std::make_unique<drivers::WatchdogThread>(*link->dog_, options.realtime ? 90 : 0);
+  }
+  link->t_.present = true;
+  link->t_.tip_radius = rc.tool_radius;
+  link->t_.stiffness = link->effective_stiffness_;
+  link->t_.calibrations = 1;
+  return link;
+}
+
+DeviceLink::~DeviceLink() {
+  Shutdown();
+}
+
+Result<std::unique_ptr<ObjectContact>> DeviceLink::MakeContact(
+    std::span<const std::array<int32_t, 3>> surface, std::span<const Vec3> positions,
+    const Vec3& tool, double min_node_mass) const {
+  haptics::RendererConfig rc = renderer_config_;
+  if (min_node_mass > 0.0)
+    rc.coupling_stiffness = std::clamp(2.0 * min_node_mass / (rc.device.tick * rc.device.tick), 1.0,
+                                       rc.coupling_stiffness);
+  auto r = haptics::Renderer::Create(rc, surface, positions, tool);
+  if (!r.ok()) return r.error();
+  return std::unique_ptr<ObjectContact>(new RendererContact(std::move(r).value()));
+}
+
+void DeviceLink::EmergencyStop() {
+  estop_.store(true, std::memory_order_seq_cst);
+  device_->SafeStop();
+}
+
+void DeviceLink::ClearStop() {
+  device_->ClearFaults();
+  // An emergency stop that arrived while clearing must win: stop again.
+  if (estop_.load(std::memory_order_seq_cst)) device_->SafeStop();
+  if (dog_) dog_->Arm(drivers::MonotonicNowNs());
+  healthy_ticks_ = 0;
+}
+
+void DeviceLink::Apply(const Command& c) {
+  switch (c.type) {
+    case Command::Type::kDeviceCalibrate:
+      estop_.store(false, std::memory_order_seq_cst);
+      if (device_->Calibrate().ok()) {
+        ++t_.calibrations;
+      } else {
+        ++t_.calibration_failures;
+      }
+      ClearStop();
+      break;
+    case Command::Type::kDeviceClear:
+      estop_.store(false, std::memory_order_seq_cst);
+      ClearStop();
+      break;
+    case Command::Type::kSetToolOrigin: origin_ = Vec3(c.vec[0], c.vec[1], c.vec[2]); break;
+    default: break;
+  }
+}
+
+void DeviceLink::Forget(const EngineSlot& slot) {
+  if (slot.object == contact_object_) {
+    contact_object_ = nullptr;
+    forced_count_ = 0;
+  }
+}
+
+void DeviceLink::ReleaseContact() {
+  if (contact_object_)
+    for (int i = 0; i < forced_count_; ++i)
+      contact_object_->SetExternalForce(forced_nodes_[i], Vec3::Zero());
+  forced_count_ = 0;
+}
+
+void DeviceLink::BeforeStep(const rt::TickInfo& info) {
+  const Status s = device_->Exchange(info.dt);
+  const int64_t done = drivers::MonotonicNowNs();
+  if (dog_ && !dog_armed_) {
+    dog_->Arm(done);
+    dog_armed_ = true;
+  }
+  if (dog_) dog_->Feed(done);
+  if (s.ok()) {
+    ++t_.exchanges;
+  } else {
+    ++t_.device_errors;
+  }
+  if (done - info.deadline_ns > (int64_t)(info.dt * 0.5e9)) ++t_.deadline_misses;
+
+  // A stall (watchdog trip, a missed reply) latched a stop; after enough good ticks, and unless
+  // someone pressed the emergency stop, the loop clears it.
+  const uint32_t stall = drivers::kFaultSafeStop | drivers::kFaultProtocol;
+  const uint32_t faults = device_->status().faults;
+  if ((faults & stall) && s.ok() && !estop_.load(std::memory_order_seq_cst)) {
+    if (++healthy_ticks_ >= options_.recover_after_ticks) {
+      ClearStop();
+      ++t_.recoveries;
+    }
+  } else {
+    healthy_ticks_ = 0;
+  }
+}
+
+void DeviceLink::AfterStep(const rt::TickInfo& info, std::span<EngineSlot> slots,
+                           ToolTelemetry* out) {
+  const drivers::ToolState& tool = device_->state();
+  const Vec3 position = origin_ + tool.pose.position;
+  // The tool renders against the first object that has a renderer.
+  EngineSlot* target = nullptr;
+  for (EngineSlot& s : slots)
+    if (s.contact) {
+      target = &s;
+      break;
+    }
+  if (!target || target->object != contact_object_) {
+    ReleaseContact();
+    contact_object_ = target ? target->object : nullptr;
+  }
+  drivers::Wrench command;
+  Vec3 object_force = Vec3::Zero();
+  bool in_contact = false;
+  Vec3 proxy = position;
+  if (target) {
+    auto& r = static_cast<RendererContact*>(target->contact)->renderer;
+    t_.stiffness = r.effective_stiffness();
+    auto o = r.Update({position, tool.linear_velocity}, target->object->positions(), info.dt);
+    if (o.ok()) {
+      command.force = o->wrench.force;
+      command.torque = o->wrench.torque;
+      proxy = o->proxy;
+      in_contact = o->in_contact;
+      ReleaseContact();
+      // The object feels the tool only while the device displays its reaction.
+      if (device_->status().faults == drivers::kFaultNone) {
+        for (const haptics::NodeForce& nf : o->node_forces) {
+          if (forced_count_ >= static_cast<int>(forced_nodes_.size())) break;
+          target->object->SetExternalForce(nf.node, nf.force);
+          forced_nodes_[forced_count_++] = nf.node;
+          object_force += nf.force;
+        }
+      }
+    } else {
+      ++t_.renderer_errors;
+      ReleaseContact();
+    }
+  }
+  // The renderer's wrench is the force on the hand: what the strings pull the grip with.
+  device_->SetWrench(command);
+
+  const drivers::DeviceStatus& st = device_->status();
+  t_.connected = st.connected;
+  t_.calibrated = st.calibrated;
+  t_.in_contact = in_contact;
+  t_.emergency_stopped = estop_.load(std::memory_order_relaxed);
+  t_.watchdog_tripped = dog_ && dog_->tripped();
+  t_.watchdog_trips = dog_ ? dog_->trips() : 0;
+  t_.faults = st.faults;
+  t_.contact_instance = target ? target->instance_id : 0;
+  t_.num_motors = std::min(st.num_motors, 8);
+  t_.device_position = A3(position);
+  const Eigen::Quaterniond& q = tool.pose.orientation;
+  t_.device_orientation = {q.w(), q.x(), q.y(), q.z()};
+  t_.proxy = A3(proxy);
+  t_.tool_origin = A3(origin_);
+  t_.requested_force = A3(st.requested.force);
+  t_.requested_torque = A3(st.requested.torque);
+  t_.displayed_force = A3(st.displayed.force);
+  t_.displayed_torque = A3(st.displayed.torque);
+  t_.object_force = A3(object_force);
+  for (int i = 0; i < 8; ++i) {
+    t_.tensions[i] = i < t_.num_motors ? st.tensions[i] : 0.0;
+    t_.lengths[i] = i < t_.num_motors ? st.lengths[i] : 0.0;
+  }
+  t_.protocol_errors = st.protocol_errors;
+  t_.input_seq = network_ ? network_->used_seq() : 0;
+  *out = t_;
+}
+
+std::string DeviceLink::Shutdown() {
+  if (!device_) {
+    if (emulator_) emulator_->Stop();
+    return "";
+  }
+  if (dog_) dog_->Disarm();
+  if (dog_thread_) dog_thread_->Stop();
+  const uint64_t before = emulator_ ? emulator_->Snapshot().current_commands : 0;
+  // Close() safe-stops again: a second minimum-tension command in case the first was lost.
+  device_->SafeStop();
+  device_->Close();
+  std::string line;
+  if (emulator_) {
+    const drivers::GripSnapshot snap = emulator_->Snapshot();
+    line = "emulator: " + std::to_string(snap.current_commands - before) +
+           " command(s) during the stop; ";
+    line += "last command received sets string tensions [";
+    bool all_min = true;
+    for (int i = 0; i < snap.tensions.size(); ++i) {
+      char b[32];
+      std::snprintf(b, sizeof b, "%s%.3f", i ? " " : "", snap.tensions[i]);
+      line += b;
+      if (snap.tensions[i] > min_tension_ + 0.01) all_min = false;
+    }
+    char b[96];
+    std::snprintf(b, sizeof b, "] N; minimum %.3f N; all at minimum: %s", min_tension_,
+                  all_min ? "yes" : "no");
+    line += b;
+  }
+  dog_thread_.reset();
+  dog_.reset();
+  device_.reset();
+  network_ = nullptr;
+  if (emulator_) emulator_->Stop();
+  emulator_.reset();
+  return line;
+}
+
+}  // namespace rheo::daemon

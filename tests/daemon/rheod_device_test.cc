@@ -1,0 +1,345 @@
+// The haptic device through a real rheod: the SPIDAR-G emulator behind the real driver, the
+// control lease, the emergency stop, the network tool, and a safe shutdown.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "rheo/v1/device.grpc.pb.h"
+#include "rheo/v1/frames.grpc.pb.h"
+#include "rheo/v1/objects.grpc.pb.h"
+#include "rheo/v1/scene.grpc.pb.h"
+#include "rheod_fixture.h"
+
+namespace rheo::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+std::string SketchPath(const std::string& name) {
+  return std::string(RHEO_SKETCHES) + "/" + name;
+}
+
+bool HaveSketches() {
+  return std::filesystem::exists(SketchPath("bean.json"));
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+double Norm(const v1::Vec3& v) {
+  return std::sqrt(v.x() * v.x() + v.y() * v.y() + v.z() * v.z());
+}
+
+v1::DeviceStatus Status(v1::DeviceService::Stub& stub) {
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::DeviceStatus st;
+  EXPECT_TRUE(stub.GetDeviceStatus(&ctx, {}, &st).ok());
+  return st;
+}
+
+// Makes a coarse bean (about 900 tetrahedra, implicit integrator: the loop holds 1 kHz with it),
+// puts it in the scene as hard jelly and waits until it has settled on the floor.
+uint32_t AddBean(RheodProcess& d) {
+  auto objects = v1::ObjectService::NewStub(d.channel());
+  v1::CreateObjectRequest req;
+  req.set_name("bean");
+  req.mutable_sketch()->set_strokes_json(ReadText(SketchPath("bean.json")));
+  req.mutable_mesh_options()->set_resolution(0.012);
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, 120s);
+  auto reader = objects->CreateObject(&ctx, req);
+  v1::CreateObjectProgress p;
+  std::string id;
+  while (reader->Read(&p))
+    if (p.has_object()) id = p.object().id();
+  grpc::Status s = reader->Finish();
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  auto scene = v1::SceneService::NewStub(d.channel());
+  grpc::ClientContext actx;
+  SetDeadline(actx, 30s);
+  v1::AddToSceneRequest add;
+  add.set_object_id(id);
+  add.set_preset("hard-jelly");
+  add.set_integrator(v1::INTEGRATOR_IMPLICIT);
+  auto* grip = add.add_overrides();  // the floor holds it: pressed, it stays under the tool
+  grip->set_name("friction");
+  grip->set_value(5.0);
+  v1::SceneObject so;
+  s = scene->AddToScene(&actx, add, &so);
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  // Settled: the object sleeps (or 5 s passed; the tests below do not need it asleep).
+  auto frames = v1::FrameService::NewStub(d.channel());
+  grpc::ClientContext fctx;
+  SetDeadline(fctx, 5s);
+  v1::WatchFramesRequest w;
+  w.set_rate_hz(20);
+  auto fr = frames->WatchFrames(&fctx, w);
+  v1::Frame f;
+  while (fr->Read(&f))
+    if (f.objects_size() > 0 && f.objects(0).sleeping()) {
+      fctx.TryCancel();
+      break;
+    }
+  while (fr->Read(&f)) {
+  }
+  (void)fr->Finish();
+  return so.instance_id();
+}
+
+TEST(RheodDevice, SimSpidarGStartsCalibratedWithTheX5Frame) {
+  RheodProcess d({"--device", "sim-spidar-g"});
+  ASSERT_TRUE(d.started()) << d.log();
+  auto dev = v1::DeviceService::NewStub(d.channel());
+  v1::DeviceStatus st = Status(*dev);
+  EXPECT_EQ(st.kind(), v1::DEVICE_KIND_SIM_SPIDAR_G);
+  EXPECT_EQ(st.name(), "SPIDAR-G X5");
+  EXPECT_TRUE(st.connected());
+  EXPECT_TRUE(st.calibrated());
+  EXPECT_EQ(st.string_tensions_size(), 8);
+  EXPECT_GT(st.counters().exchanges(), 0u);
+  EXPECT_NEAR(st.min_tension(), 0.3, 1e-12);
+  // Held at the centre: the solved grip pose is near the origin of the device frame.
+  EXPECT_LT(Norm(st.pose().position()), 2e-3) << st.DebugString();
+  // Without an object no wrench is displayed: the strings only balance each other, near their
+  // minimum tension (the pose is not exactly symmetric, so not all exactly at it).
+  EXPECT_LT(Norm(st.wrench().force()), 0.01) << st.DebugString();
+  for (double t : st.string_tensions()) {
+    EXPECT_GE(t, st.min_tension() - 1e-9);
+    EXPECT_LT(t, st.min_tension() + 0.05);
+  }
+}
+
+TEST(RheodDevice, PressingTheEmulatedHandIntoAnObjectGivesEqualAndOppositeForces) {
+  if (!HaveSketches()) GTEST_SKIP() << "sample sketches not found at " << RHEO_SKETCHES;
+  RheodProcess d({"--device", "sim-spidar-g"});
+  ASSERT_TRUE(d.started()) << d.log();
+  const uint32_t instance = AddBean(d);
+  ASSERT_GT(instance, 0u);
+  auto dev = v1::DeviceService::NewStub(d.channel());
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::SimulatedHandRequest req;
+    // A slow ramp keeps the tool pressing while the rheological object yields under it.
+    req.mutable_press()->set_depth_m(0.01);
+    req.mutable_press()->set_seconds(2.0);
+    v1::SimulatedHandResponse r;
+    grpc::Status s = dev->SimulatedHand(&ctx, req, &r);
+    ASSERT_TRUE(s.ok()) << s.error_message();
+  }
+  // Poll (generous deadline) until the tool rests in contact with a steady force.
+  v1::DeviceStatus st;
+  const auto end = std::chrono::steady_clock::now() + 20s;
+  while (std::chrono::steady_clock::now() < end) {
+    st = Status(*dev);
+    if (st.in_contact() && st.fault_bits() == 0 && Norm(st.wrench().force()) > 0.2) break;
+    std::this_thread::sleep_for(50ms);  // polling the daemon's state, not synchronising
+  }
+  ASSERT_TRUE(st.in_contact()) << st.DebugString();
+  EXPECT_EQ(st.contact_instance_id(), instance);
+  // The force on the hand pushes it out of the object (up), the object is pushed down.
+  EXPECT_GT(st.wrench().force().y(), 0.2) << st.DebugString();
+  EXPECT_LT(st.object_force().y(), -0.2) << st.DebugString();
+
+  // 2 s of frames: equal and opposite within 1 % in every fault-free contact frame, and no
+  // growing oscillation (the force's spread in the second second is not larger than in the first).
+  auto frames = v1::FrameService::NewStub(d.channel());
+  grpc::ClientContext fctx;
+  SetDeadline(fctx, 20s);
+  v1::WatchFramesRequest w;
+  w.set_rate_hz(100);
+  w.set_max_frames(200);  // 2 s
+  auto fr = frames->WatchFrames(&fctx, w);
+  v1::Frame f;
+  std::vector<std::pair<uint64_t, double>> fy;  // (tick, hand force y [N])
+  int compared = 0, within = 0;
+  double worst = 0.0;
+  uint64_t last_fault = 0;
+  while (fr->Read(&f)) {
+    const v1::ToolState& t = f.tool();
+    ASSERT_TRUE(t.present());
+    const uint64_t tick = f.stamp().tick();
+    if (t.faults_size() > 0) last_fault = tick;
+    // A stall (watchdog trip) stops the force; the device ramps it back afterwards.
+    if (!t.in_contact() || t.faults_size() > 0 || (last_fault && tick < last_fault + 150)) continue;
+    const auto& h = t.wrench().force();
+    const auto& o = t.object_force();
+    const double mag = Norm(h);
+    if (mag < 0.1) continue;
+    v1::Vec3 sum;
+    sum.set_x(h.x() + o.x());
+    sum.set_y(h.y() + o.y());
+    sum.set_z(h.z() + o.z());
+    const double rel = Norm(sum) / mag;
+    worst = std::max(worst, rel);
+    ++compared;
+    if (rel <= 0.01) ++within;
+    fy.emplace_back(tick, h.y());
+  }
+  ASSERT_TRUE(fr->Finish().ok());
+  ASSERT_GE(compared, 50) << "too few fault-free contact frames";
+  // Frames right after a stall recovery ramp the device's force back; allow a few of them.
+  EXPECT_GE(within, compared * 90 / 100) << "worst relative mismatch " << worst;
+  // Oscillation: the force's deviation from its 5-frame running mean (the slow press removed)
+  // must not grow from the first half of the window to the second.
+  auto wiggle = [&](size_t a, size_t b) {
+    double m = 0.0;
+    for (size_t i = std::max<size_t>(a, 2); i + 2 < b; ++i) {
+      if (fy[i + 2].first - fy[i - 2].first > 60) continue;  // only runs of consecutive frames
+      double mean = 0.0;
+      for (size_t k = i - 2; k <= i + 2; ++k) mean += fy[k].second / 5.0;
+      m = std::max(m, std::abs(fy[i].second - mean));
+    }
+    return m;
+  };
+  const size_t half = fy.size() / 2;
+  const double first = wiggle(0, half), second = wiggle(half, fy.size());
+  std::string series;
+  for (auto [tick, v] : fy) series += std::to_string(v).substr(0, 6) + " ";
+  EXPECT_LE(second, 1.5 * first + 0.05)
+      << "force wiggle " << first << " N then " << second << " N; hand force y: " << series;
+
+  // SIGTERM with the device: exits 0 and the emulator's last command is minimum tension.
+  EXPECT_EQ(d.Terminate(10s), 0) << d.log();
+  EXPECT_TRUE(d.WaitForLog("all at minimum: yes", 2s)) << d.log();
+}
+
+TEST(RheodDevice, LeaseHasOneHolderAndTheEmergencyStopHoldsUntilTheHolderClearsIt) {
+  RheodProcess d({"--device", "sim-spidar-g"});
+  ASSERT_TRUE(d.started()) << d.log();
+  auto dev = v1::DeviceService::NewStub(d.channel());
+  v1::Lease lease;
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::AcquireLeaseRequest req;
+    req.set_client_name("alice");
+    req.set_duration_s(60);
+    ASSERT_TRUE(dev->AcquireLease(&ctx, req, &lease).ok());
+    EXPECT_EQ(lease.holder(), "alice");
+    EXPECT_GT(lease.expires_in_s(), 50.0);
+  }
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::AcquireLeaseRequest req;
+    req.set_client_name("bob");
+    v1::Lease other;
+    grpc::Status s = dev->AcquireLease(&ctx, req, &other);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+    EXPECT_NE(s.error_message().find("alice"), std::string::npos) << s.error_message();
+  }
+  EXPECT_EQ(Status(*dev).lease_holder(), "alice");
+  // Anyone may stop: every string at minimum tension, the fault spelled.
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::EmergencyStopRequest req;
+    req.set_engage(true);
+    v1::EmergencyStopResponse r;
+    ASSERT_TRUE(dev->EmergencyStop(&ctx, req, &r).ok());
+    EXPECT_TRUE(r.status().emergency_stopped());
+    bool spelled = false;
+    for (const auto& f : r.status().faults()) spelled |= f == "emergency stop engaged";
+    EXPECT_TRUE(spelled) << r.status().DebugString();
+    ASSERT_EQ(r.status().string_tensions_size(), 8);
+    for (double t : r.status().string_tensions()) EXPECT_NEAR(t, r.status().min_tension(), 1e-9);
+  }
+  // Only the holder clears it.
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::EmergencyStopRequest req;
+    req.set_engage(false);
+    v1::EmergencyStopResponse r;
+    grpc::Status s = dev->EmergencyStop(&ctx, req, &r);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+    EXPECT_NE(s.error_message().find("lease"), std::string::npos) << s.error_message();
+    EXPECT_TRUE(Status(*dev).emergency_stopped());
+  }
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::EmergencyStopRequest req;
+    req.set_engage(false);
+    req.set_lease_id(lease.lease_id());
+    v1::EmergencyStopResponse r;
+    ASSERT_TRUE(dev->EmergencyStop(&ctx, req, &r).ok());
+    EXPECT_FALSE(r.status().emergency_stopped());
+  }
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::ReleaseLeaseRequest req;
+    req.set_lease_id(lease.lease_id());
+    v1::ReleaseLeaseResponse r;
+    ASSERT_TRUE(dev->ReleaseLease(&ctx, req, &r).ok());
+  }
+  EXPECT_EQ(Status(*dev).lease_holder(), "");
+}
+
+TEST(RheodDevice, NetworkToolNeedsTheLeaseAndFeelsTheObject) {
+  if (!HaveSketches()) GTEST_SKIP() << "sample sketches not found at " << RHEO_SKETCHES;
+  RheodProcess d({"--device", "network"});
+  ASSERT_TRUE(d.started()) << d.log();
+  auto dev = v1::DeviceService::NewStub(d.channel());
+  {  // no lease: refused with what to do
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    auto stream = dev->ToolStream(&ctx);
+    v1::ToolInput in;
+    in.mutable_pose()->mutable_position()->set_y(0.0);
+    stream->Write(in);
+    stream->WritesDone();
+    v1::ToolFeedback fb;
+    EXPECT_FALSE(stream->Read(&fb));
+    grpc::Status s = stream->Finish();
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::PERMISSION_DENIED);
+    EXPECT_NE(s.error_message().find("AcquireLease"), std::string::npos) << s.error_message();
+  }
+  AddBean(d);
+  v1::Lease lease;
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::AcquireLeaseRequest req;
+    req.set_client_name("net");
+    req.set_duration_s(120);
+    ASSERT_TRUE(dev->AcquireLease(&ctx, req, &lease).ok());
+  }
+  // The device frame's origin sits above the object; move the tool straight down into it.
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, 30s);
+  auto stream = dev->ToolStream(&ctx);
+  double best = 0.0;
+  bool contact = false;
+  for (int i = 0; i <= 600; ++i) {
+    v1::ToolInput in;
+    in.set_lease_id(lease.lease_id());
+    in.mutable_pose()->mutable_position()->set_y(-0.04 * std::min(1.0, i / 400.0));
+    in.mutable_pose()->mutable_orientation()->set_w(1.0);
+    ASSERT_TRUE(stream->Write(in));
+    v1::ToolFeedback fb;
+    if (!stream->Read(&fb)) {
+      grpc::Status s = stream->Finish();
+      FAIL() << "stream ended at input " << i << ": " << s.error_message();
+    }
+    contact |= fb.in_contact();
+    best = std::max(best, fb.wrench().force().y());
+  }
+  stream->WritesDone();
+  EXPECT_TRUE(stream->Finish().ok());
+  EXPECT_TRUE(contact);
+  EXPECT_GT(best, 0.2) << "the object should push the tool up";
+}
+
+}  // namespace
+}  // namespace rheo::testing
