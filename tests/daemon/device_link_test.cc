@@ -1,0 +1,163 @@
+// The device side of the loop without gRPC: the lock-free slot, the network tool fed from other
+// threads, the emergency stop from another thread, and the contact on a simulated tetrahedron
+// (threads: also run under TSan, label rt).
+#include "daemon/device_link.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <thread>
+#include <vector>
+
+#include "daemon/seq_slot.h"
+#include "sim/sim.h"
+
+namespace rheo::daemon {
+namespace {
+
+struct Payload {
+  uint64_t words[16] = {};
+};
+
+TEST(SeqSlot, ReadersNeverSeeATornValue) {
+  SeqSlot<Payload> slot;
+  std::atomic<bool> stop{false};
+  std::thread writer([&] {
+    Payload p;
+    for (uint64_t i = 1; i <= 100000; ++i) {
+      for (auto& w : p.words) w = i;
+      slot.Store(p);
+    }
+    stop.store(true);
+  });
+  std::vector<std::thread> readers;
+  std::atomic<int> torn{0}, backwards{0};
+  for (int r = 0; r < 3; ++r)
+    readers.emplace_back([&] {
+      uint64_t last = 0;
+      while (!stop.load()) {
+        const Payload p = slot.Load();
+        for (uint64_t w : p.words)
+          if (w != p.words[0]) torn.fetch_add(1);
+        if (p.words[0] < last) backwards.fetch_add(1);
+        last = p.words[0];
+      }
+    });
+  writer.join();
+  for (auto& t : readers) t.join();
+  EXPECT_EQ(torn.load(), 0);
+  EXPECT_EQ(backwards.load(), 0);
+  EXPECT_EQ(slot.Load().words[15], 100000u);
+}
+
+EngineOptions TestOptions() {
+  EngineOptions o;
+  o.loop.realtime_priority = false;
+  o.loop.lock_memory = false;
+  return o;
+}
+
+// One tetrahedron, 4 cm, apex up (no gravity, no floor; the test holds its base).
+TetMesh Tet() {
+  TetMesh m;
+  m.positions = {Vec3(0, 0, 0), Vec3(0.04, 0, 0), Vec3(0, 0, 0.04), Vec3(0.01, 0.04, 0.01)};
+  // Positive orientation: (p1-p0) . ((p2-p0) x (p3-p0)) > 0.
+  m.tets = {{0, 2, 1, 3}};
+  m.surface = {{0, 1, 2}, {0, 3, 1}, {1, 3, 2}, {0, 2, 3}};
+  return m;
+}
+
+ToolTelemetry WaitFor(const Engine& e, const std::function<bool(const ToolTelemetry&)>& ok) {
+  const int64_t end = rt::Loop::NowNs() + 5'000'000'000;
+  ToolTelemetry t = e.tool();
+  while (!ok(t) && rt::Loop::NowNs() < end) {
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+    t = e.tool();
+  }
+  return t;
+}
+
+TEST(DeviceLink, NetworkToolPressesATetrahedronWithEqualAndOppositeForces) {
+  DeviceLinkOptions o;
+  o.kind = DeviceKind::kNetwork;
+  o.realtime = false;
+  auto link = DeviceLink::Open(o);
+  ASSERT_TRUE(link.ok()) << link.error().message;
+  NetworkDevice* net = (*link)->network();
+  ASSERT_NE(net, nullptr);
+
+  TetMesh mesh = Tet();
+  auto preset = sim::FindPreset("hard-jelly");
+  ASSERT_TRUE(preset.ok());
+  sim::Parameters p = preset->params;
+  p.gravity = 0.0;
+  p.floor_enabled = 0.0;
+  auto obj = sim::SimObject::Create(mesh, p, sim::Integrator::kImplicitEuler);
+  ASSERT_TRUE(obj.ok()) << obj.error().message;
+  for (int32_t base : {0, 1, 2}) (*obj)->SetFixed(base, true);  // held at its base
+  double min_mass = 1e9;
+  for (double m : (*obj)->model().mass) min_mass = std::min(min_mass, m);
+  // The tool starts 1 cm above the apex; the device frame's origin is the scene origin.
+  auto contact =
+      (*link)->MakeContact(mesh.surface, (*obj)->positions(), Vec3(0.01, 0.05, 0.01), min_mass);
+  ASSERT_TRUE(contact.ok()) << contact.error().message;
+
+  Engine engine(TestOptions());
+  engine.AttachDevice(link->get());
+  engine.Start();
+  Command add;
+  add.type = Command::Type::kAddObject;
+  add.instance_id = 7;
+  add.object = obj->release();
+  add.contact = contact->release();
+  ASSERT_TRUE(engine.WaitApplied(engine.Submit(add), 5'000'000'000));
+
+  // Another thread streams poses down onto the apex's face region, like ToolStream does.
+  std::atomic<bool> stop{false};
+  std::thread feeder([&] {
+    for (int i = 0; !stop.load(); ++i) {
+      drivers::Pose pose;
+      pose.position = Vec3(0.012, 0.05 - 0.02 * std::min(1.0, i / 200.0), 0.012);
+      net->Push(pose, 0);
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  });
+  ToolTelemetry t = WaitFor(engine, [](const ToolTelemetry& t) {
+    return t.in_contact && t.faults == 0 && t.displayed_force[1] > 0.2;
+  });
+  EXPECT_TRUE(t.in_contact);
+  EXPECT_EQ(t.contact_instance, 7u);
+  EXPECT_GT(t.displayed_force[1], 0.2);
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(t.object_force[k], -t.displayed_force[k],
+                1e-9 + 1e-9 * std::abs(t.displayed_force[1]));
+  EXPECT_GT(t.input_seq, 0u);
+
+  // Emergency stop from yet another thread: no force displayed, none put on the object.
+  std::thread([&] { (*link)->EmergencyStop(); }).join();
+  t = WaitFor(engine, [](const ToolTelemetry& t) {
+    return t.emergency_stopped && (t.faults & drivers::kFaultSafeStop);
+  });
+  t = WaitFor(engine, [&](const ToolTelemetry& u) { return u.tick > t.tick + 2; });
+  EXPECT_TRUE(t.emergency_stopped);
+  EXPECT_TRUE(t.faults & drivers::kFaultSafeStop);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(t.displayed_force[k], 0.0);
+    EXPECT_EQ(t.object_force[k], 0.0);
+  }
+  // Clearing (the service checks the lease first) brings the force back.
+  Command clear;
+  clear.type = Command::Type::kDeviceClear;
+  ASSERT_TRUE(engine.WaitApplied(engine.Submit(clear), 5'000'000'000));
+  t = WaitFor(engine, [](const ToolTelemetry& t) {
+    return !t.emergency_stopped && t.faults == 0 && t.displayed_force[1] > 0.2;
+  });
+  EXPECT_FALSE(t.emergency_stopped);
+  EXPECT_GT(t.displayed_force[1], 0.2);
+  stop.store(true);
+  feeder.join();
+  engine.Stop();
+}
+
+}  // namespace
+}  // namespace rheo::daemon
