@@ -269,7 +269,7 @@ grpc::Status DeviceServiceImpl::ToolStream(
       std::this_thread::sleep_for(std::chrono::microseconds(100));
       t = ctx_.engine->tool();
     }
-    ++used;
+    if (t.input_seq >= seq) ++used;
     fb.Clear();
     fb.mutable_stamp()->set_tick(t.tick);
     fb.mutable_stamp()->set_sim_time(ctx_.engine->sim_time());
