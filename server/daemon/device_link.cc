@@ -4,6 +4,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <thread>
 
 #include "drivers/device_factory.h"
 
@@ -299,7 +300,13 @@ std::string DeviceLink::Shutdown() {
   device_->Close();
   std::string line;
   if (emulator_) {
-    const drivers::GripSnapshot snap = emulator_->Snapshot();
+    // On a busy machine the pty may deliver the stop commands after the driver gave up waiting
+    // for the reply: give the emulator up to 1 s to take both.
+    drivers::GripSnapshot snap = emulator_->Snapshot();
+    for (int i = 0; i < 200 && snap.current_commands < before + 2; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      snap = emulator_->Snapshot();
+    }
     line = "emulator: " + std::to_string(snap.current_commands - before) +
            " command(s) during the stop; ";
     line += "last command received sets string tensions [";
