@@ -1,0 +1,99 @@
+// The device's part of the loop tick allocates nothing: exchange (through the emulator's pty, or
+// the network tool's slot), contact, node forces, device command, telemetry. Own binary: it
+// counts allocations (rheo_test_alloc replaces the global operator new).
+#include <gtest/gtest.h>
+
+#include <array>
+
+#include "alloc_counter.h"
+#include "daemon/device_link.h"
+#include "sim/sim.h"
+
+namespace rheo::daemon {
+namespace {
+
+TetMesh Tet() {
+  TetMesh m;
+  m.positions = {Vec3(0, 0, 0), Vec3(0.04, 0, 0), Vec3(0, 0, 0.04), Vec3(0.01, 0.04, 0.01)};
+  m.tets = {{0, 2, 1, 3}};
+  m.surface = {{0, 1, 2}, {0, 3, 1}, {1, 3, 2}, {0, 2, 3}};
+  return m;
+}
+
+// Runs `ticks` ticks of the device side against a held tetrahedron; `move` sets the tool.
+void RunTicks(DeviceLink& link, int ticks, const std::function<void(int)>& move, long* allocs,
+              int* contact_ticks) {
+  TetMesh mesh = Tet();
+  auto preset = sim::FindPreset("hard-jelly");
+  ASSERT_TRUE(preset.ok());
+  sim::Parameters p = preset->params;
+  p.gravity = 0.0;
+  p.floor_enabled = 0.0;
+  auto obj = sim::SimObject::Create(mesh, p, sim::Integrator::kImplicitEuler);
+  ASSERT_TRUE(obj.ok());
+  for (int32_t base : {0, 1, 2}) (*obj)->SetFixed(base, true);
+  double min_mass = 1e9;
+  for (double m : (*obj)->model().mass) min_mass = std::min(min_mass, m);
+  auto contact =
+      link.MakeContact(mesh.surface, (*obj)->positions(), Vec3(0.012, 0.05, 0.012), min_mass);
+  ASSERT_TRUE(contact.ok()) << contact.error().message;
+  std::array<EngineSlot, 1> slots{EngineSlot{1, obj->get(), contact->get()}};
+  ToolTelemetry out;
+  *allocs = 0;
+  *contact_ticks = 0;
+  for (int i = 0; i < ticks; ++i) {
+    move(i);
+    rt::TickInfo info;
+    info.tick = static_cast<uint64_t>(i);
+    info.dt = 1e-3;
+    info.deadline_ns = info.start_ns = rt::Loop::NowNs();
+    testing::AllocationCounter count;
+    link.BeforeStep(info);
+    (*obj)->Step(info.dt);
+    link.AfterStep(info, slots, &out);
+    *allocs += count.count();
+    if (out.in_contact) ++*contact_ticks;
+  }
+  link.Forget(slots[0]);
+}
+
+TEST(DeviceTickAlloc, NetworkToolInContactAllocatesNothing) {
+  DeviceLinkOptions o;
+  o.kind = DeviceKind::kNetwork;
+  o.realtime = false;
+  auto link = DeviceLink::Open(o);
+  ASSERT_TRUE(link.ok()) << link.error().message;
+  NetworkDevice* net = (*link)->network();
+  long allocs = -1;
+  int contact = 0;
+  RunTicks(
+      **link, 400,
+      [&](int i) {
+        drivers::Pose pose;
+        pose.position = Vec3(0.012, 0.05 - 0.02 * std::min(1.0, i / 200.0), 0.012);
+        net->Push(pose, 0);
+      },
+      &allocs, &contact);
+  EXPECT_GT(contact, 50) << "the tool should have touched the tetrahedron";
+  EXPECT_EQ(allocs, 0);
+}
+
+TEST(DeviceTickAlloc, SpidarGThroughTheEmulatorAllocatesNothing) {
+  DeviceLinkOptions o;
+  o.kind = DeviceKind::kSimSpidarG;
+  o.config_path = std::string(RHEO_DEVICES) + "/spidar_g_x5.json";
+  o.realtime = false;
+  o.reply_timeout_us = 50000;
+  o.watchdog_timeout_ns = 1'000'000'000;  // a test thread, not the real-time loop
+  auto link = DeviceLink::Open(o);
+  ASSERT_TRUE(link.ok()) << link.error().message;
+  long allocs = -1;
+  int contact = 0;
+  RunTicks(
+      **link, 300, [](int) {}, &allocs, &contact);
+  EXPECT_EQ(allocs, 0);
+  (*link)->Shutdown();
+}
+
+}  // namespace
+}  // namespace rheo::daemon
