@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -185,6 +186,8 @@ TEST(RheodDevice, PressingTheEmulatedHandIntoAnObjectGivesEqualAndOppositeForces
     fy.emplace_back(tick, h.y());
   }
   ASSERT_TRUE(fr->Finish().ok());
+  std::printf("contact frames compared %d, within 1 %%: %d, worst relative mismatch %.2e\n",
+              compared, within, worst);
   ASSERT_GE(compared, 50) << "too few fault-free contact frames";
   // Frames right after a stall recovery ramp the device's force back; allow a few of them.
   EXPECT_GE(within, compared * 90 / 100) << "worst relative mismatch " << worst;
@@ -204,6 +207,8 @@ TEST(RheodDevice, PressingTheEmulatedHandIntoAnObjectGivesEqualAndOppositeForces
   const double first = wiggle(0, half), second = wiggle(half, fy.size());
   std::string series;
   for (auto [tick, v] : fy) series += std::to_string(v).substr(0, 6) + " ";
+  std::printf("force wiggle (deviation from the 5-frame mean): %.3f N, then %.3f N\n", first,
+              second);
   EXPECT_LE(second, 1.5 * first + 0.05)
       << "force wiggle " << first << " N then " << second << " N; hand force y: " << series;
 
