@@ -54,6 +54,12 @@ class FrameHub {
     return latest_;
   }
   bool stopping() const { return stopping_flag_.load(std::memory_order_acquire); }
+  /// Sequence number of the newest snapshot. A client that waits for a newer one sees the
+  /// scene as it is now, not as it was when the hub last copied a frame (up to 100 ms idle).
+  uint64_t latest_seq() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return latest_ ? latest_->seq : 0;
+  }
 
  private:
   void Run();

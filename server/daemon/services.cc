@@ -111,7 +111,9 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
   using Clock = std::chrono::steady_clock;
   const auto period = std::chrono::nanoseconds(static_cast<int64_t>(1e9 / rate));
   auto due = Clock::now();
-  uint64_t last_seq = 0;
+  // The first frame is copied after this call began, so it shows every object whose addition
+  // was acknowledged before.
+  uint64_t last_seq = hub.latest_seq();
   uint64_t sent = 0;
   uint64_t revision_sent = 0;
   uint64_t dropped = 0;
