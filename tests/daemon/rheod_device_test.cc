@@ -141,14 +141,16 @@ TEST(RheodDevice, PressingTheEmulatedHandIntoAnObjectGivesEqualAndOppositeForces
   const auto end = std::chrono::steady_clock::now() + 20s;
   while (std::chrono::steady_clock::now() < end) {
     st = Status(*dev);
-    if (st.in_contact() && st.fault_bits() == 0 && Norm(st.wrench().force()) > 0.2) break;
+    if (st.in_contact() && st.fault_bits() == 0 && st.wrench().force().y() > 0.3) break;
     std::this_thread::sleep_for(50ms);  // polling the daemon's state, not synchronising
   }
   ASSERT_TRUE(st.in_contact()) << st.DebugString();
   EXPECT_EQ(st.contact_instance_id(), instance);
   // The force on the hand pushes it out of the object (up), the object is pushed down.
-  EXPECT_GT(st.wrench().force().y(), 0.2) << st.DebugString();
-  EXPECT_LT(st.object_force().y(), -0.2) << st.DebugString();
+  EXPECT_GT(st.wrench().force().y(), 0.3) << st.DebugString();
+  EXPECT_LT(st.object_force().y(), -0.3) << st.DebugString();
+  // Let the press ramp (2 s) finish: the window below sees the hand holding still.
+  std::this_thread::sleep_for(2s);
 
   // 2 s of frames: equal and opposite within 1 % in every fault-free contact frame, and no
   // growing oscillation (the force's spread in the second second is not larger than in the first).
@@ -191,25 +193,27 @@ TEST(RheodDevice, PressingTheEmulatedHandIntoAnObjectGivesEqualAndOppositeForces
   ASSERT_GE(compared, 50) << "too few fault-free contact frames";
   // Frames right after a stall recovery ramp the device's force back; allow a few of them.
   EXPECT_GE(within, compared * 90 / 100) << "worst relative mismatch " << worst;
-  // Oscillation: the force's deviation from its 5-frame running mean (the slow press removed)
-  // must not grow from the first half of the window to the second.
+  // Oscillation: the RMS deviation of the force from its 5-frame running mean must not grow
+  // from the first second of the hold to the second.
   auto wiggle = [&](size_t a, size_t b) {
-    double m = 0.0;
+    double sum = 0.0;
+    int n = 0;
     for (size_t i = std::max<size_t>(a, 2); i + 2 < b; ++i) {
       if (fy[i + 2].first - fy[i - 2].first > 60) continue;  // only runs of consecutive frames
       double mean = 0.0;
       for (size_t k = i - 2; k <= i + 2; ++k) mean += fy[k].second / 5.0;
-      m = std::max(m, std::abs(fy[i].second - mean));
+      sum += (fy[i].second - mean) * (fy[i].second - mean);
+      ++n;
     }
-    return m;
+    return n ? std::sqrt(sum / n) : 0.0;
   };
   const size_t half = fy.size() / 2;
   const double first = wiggle(0, half), second = wiggle(half, fy.size());
   std::string series;
   for (auto [tick, v] : fy) series += std::to_string(v).substr(0, 6) + " ";
-  std::printf("force wiggle (deviation from the 5-frame mean): %.3f N, then %.3f N\n", first,
+  std::printf("force wiggle (RMS deviation from the 5-frame mean): %.3f N, then %.3f N\n", first,
               second);
-  EXPECT_LE(second, 1.5 * first + 0.05)
+  EXPECT_LE(second, 1.5 * first + 0.03)
       << "force wiggle " << first << " N then " << second << " N; hand force y: " << series;
 
   // SIGTERM with the device: exits 0 and the emulator's last command is minimum tension.
