@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "daemon/seq_slot.h"
+#include "held_tet.h"
 #include "sim/sim.h"
 
 namespace rheo::daemon {
@@ -57,16 +58,6 @@ EngineOptions TestOptions() {
   return o;
 }
 
-// One tetrahedron, 4 cm, apex up (no gravity, no floor; the test holds its base).
-TetMesh Tet() {
-  TetMesh m;
-  m.positions = {Vec3(0, 0, 0), Vec3(0.04, 0, 0), Vec3(0, 0, 0.04), Vec3(0.01, 0.04, 0.01)};
-  // Positive orientation: (p1-p0) . ((p2-p0) x (p3-p0)) > 0.
-  m.tets = {{0, 2, 1, 3}};
-  m.surface = {{0, 1, 2}, {0, 3, 1}, {1, 3, 2}, {0, 2, 3}};
-  return m;
-}
-
 ToolTelemetry WaitFor(const Engine& e, const std::function<bool(const ToolTelemetry&)>& ok) {
   const int64_t end = rt::Loop::NowNs() + 5'000'000'000;
   ToolTelemetry t = e.tool();
@@ -86,20 +77,11 @@ TEST(DeviceLink, NetworkToolPressesATetrahedronWithEqualAndOppositeForces) {
   NetworkDevice* net = (*link)->network();
   ASSERT_NE(net, nullptr);
 
-  TetMesh mesh = Tet();
-  auto preset = sim::FindPreset("hard-jelly");
-  ASSERT_TRUE(preset.ok());
-  sim::Parameters p = preset->params;
-  p.gravity = 0.0;
-  p.floor_enabled = 0.0;
-  auto obj = sim::SimObject::Create(mesh, p, sim::Integrator::kImplicitEuler);
-  ASSERT_TRUE(obj.ok()) << obj.error().message;
-  for (int32_t base : {0, 1, 2}) (*obj)->SetFixed(base, true);  // held at its base
-  double min_mass = 1e9;
-  for (double m : (*obj)->model().mass) min_mass = std::min(min_mass, m);
+  auto held = testing::MakeHeldTet();
+  ASSERT_TRUE(held.ok()) << held.error().message;
   // The tool starts 1 cm above the apex; the device frame's origin is the scene origin.
-  auto contact =
-      (*link)->MakeContact(mesh.surface, (*obj)->positions(), Vec3(0.01, 0.05, 0.01), min_mass);
+  auto contact = (*link)->MakeContact(held->mesh.surface, held->object->positions(),
+                                      Vec3(0.01, 0.05, 0.01), held->min_mass);
   ASSERT_TRUE(contact.ok()) << contact.error().message;
 
   Engine engine(TestOptions());
@@ -108,7 +90,7 @@ TEST(DeviceLink, NetworkToolPressesATetrahedronWithEqualAndOppositeForces) {
   Command add;
   add.type = Command::Type::kAddObject;
   add.instance_id = 7;
-  add.object = obj->release();
+  add.object = held->object.release();
   add.contact = contact->release();
   ASSERT_TRUE(engine.WaitApplied(engine.Submit(add), 5'000'000'000));
 

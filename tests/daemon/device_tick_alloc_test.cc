@@ -7,37 +7,22 @@
 
 #include "alloc_counter.h"
 #include "daemon/device_link.h"
+#include "held_tet.h"
 #include "sim/sim.h"
 
 namespace rheo::daemon {
 namespace {
 
-TetMesh Tet() {
-  TetMesh m;
-  m.positions = {Vec3(0, 0, 0), Vec3(0.04, 0, 0), Vec3(0, 0, 0.04), Vec3(0.01, 0.04, 0.01)};
-  m.tets = {{0, 2, 1, 3}};
-  m.surface = {{0, 1, 2}, {0, 3, 1}, {1, 3, 2}, {0, 2, 3}};
-  return m;
-}
-
 // Runs `ticks` ticks of the device side against a held tetrahedron; `move` sets the tool.
 void RunTicks(DeviceLink& link, int ticks, const std::function<void(int)>& move, long* allocs,
               int* contact_ticks) {
-  TetMesh mesh = Tet();
-  auto preset = sim::FindPreset("hard-jelly");
-  ASSERT_TRUE(preset.ok());
-  sim::Parameters p = preset->params;
-  p.gravity = 0.0;
-  p.floor_enabled = 0.0;
-  auto obj = sim::SimObject::Create(mesh, p, sim::Integrator::kImplicitEuler);
-  ASSERT_TRUE(obj.ok());
-  for (int32_t base : {0, 1, 2}) (*obj)->SetFixed(base, true);
-  double min_mass = 1e9;
-  for (double m : (*obj)->model().mass) min_mass = std::min(min_mass, m);
-  auto contact =
-      link.MakeContact(mesh.surface, (*obj)->positions(), Vec3(0.012, 0.05, 0.012), min_mass);
+  auto held = testing::MakeHeldTet();
+  ASSERT_TRUE(held.ok()) << held.error().message;
+  sim::SimObject* obj = held->object.get();
+  auto contact = link.MakeContact(held->mesh.surface, obj->positions(), Vec3(0.012, 0.05, 0.012),
+                                  held->min_mass);
   ASSERT_TRUE(contact.ok()) << contact.error().message;
-  std::array<EngineSlot, 1> slots{EngineSlot{1, obj->get(), contact->get()}};
+  std::array<EngineSlot, 1> slots{EngineSlot{1, obj, contact->get()}};
   ToolTelemetry out;
   *allocs = 0;
   *contact_ticks = 0;
@@ -49,7 +34,7 @@ void RunTicks(DeviceLink& link, int ticks, const std::function<void(int)>& move,
     info.deadline_ns = info.start_ns = rt::Loop::NowNs();
     testing::AllocationCounter count;
     link.BeforeStep(info);
-    (*obj)->Step(info.dt);
+    obj->Step(info.dt);
     link.AfterStep(info, slots, &out);
     *allocs += count.count();
     if (out.in_contact) ++*contact_ticks;
