@@ -18,22 +18,13 @@ namespace {
 using Bytes = std::vector<uint8_t>;
 namespace t = rheo::sketch::testing;
 
-uint32_t Crc32(const uint8_t* p, size_t n) {
-  uint32_t c = 0xFFFFFFFFu;
-  for (size_t i = 0; i < n; ++i) {
-    c ^= p[i];
-    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
-  }
-  return ~c;
-}
-
 // Recomputes every chunk CRC of a PNG, so mutations reach past libpng's CRC check.
 void FixPngCrcs(Bytes& b) {
   size_t i = 8;
   while (i + 12 <= b.size()) {
     const uint32_t len = (uint32_t(b[i]) << 24) | (b[i + 1] << 16) | (b[i + 2] << 8) | b[i + 3];
     if (len > b.size() || i + 12 + len > b.size()) break;
-    const uint32_t c = Crc32(&b[i + 4], len + 4);
+    const uint32_t c = t::Crc32(&b[i + 4], len + 4);
     b[i + 8 + len] = c >> 24, b[i + 9 + len] = c >> 16, b[i + 10 + len] = c >> 8,
               b[i + 11 + len] = c;
     i += 12 + len;

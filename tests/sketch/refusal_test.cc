@@ -20,15 +20,6 @@ void ExpectError(const Result<ContourResult>& r, ErrorCode code, const std::stri
   EXPECT_NE(r.error().message.find(needle), std::string::npos) << r.error().message;
 }
 
-uint32_t Crc32(const uint8_t* p, size_t n) {
-  uint32_t c = 0xFFFFFFFFu;
-  for (size_t i = 0; i < n; ++i) {
-    c ^= p[i];
-    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
-  }
-  return ~c;
-}
-
 void Put32(uint8_t* p, uint32_t v) {
   p[0] = v >> 24, p[1] = v >> 16, p[2] = v >> 8, p[3] = v;
 }
@@ -127,7 +118,7 @@ TEST(SketchRefusal, PictureOverThePixelLimitIsRefusedFromTheHeader) {
   ASSERT_EQ(std::memcmp(&png[12], "IHDR", 4), 0);
   Put32(&png[16], 5000);
   Put32(&png[20], 4000);
-  Put32(&png[29], Crc32(&png[12], 17));
+  Put32(&png[29], testing::Crc32(&png[12], 17));
   ExpectError(ContourFromImage(Bytes(png), {}), ErrorCode::kResourceExhausted, "max_pixels");
   ExpectError(ContourFromImage(Bytes(png), {}), ErrorCode::kResourceExhausted, "5000 x 4000");
 

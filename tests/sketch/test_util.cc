@@ -207,4 +207,13 @@ std::vector<uint8_t> EncodeJpeg(const Picture& p, int quality) {
   return out;
 }
 
+uint32_t Crc32(const uint8_t* p, size_t n) {
+  uint32_t c = 0xFFFFFFFFu;
+  for (size_t i = 0; i < n; ++i) {
+    c ^= p[i];
+    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
+  }
+  return ~c;
+}
+
 }  // namespace rheo::sketch::testing

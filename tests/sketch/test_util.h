@@ -45,4 +45,7 @@ void UnevenLight(Picture& p, double darkest, double noise_sigma, std::mt19937& r
 std::vector<uint8_t> EncodePng(const Picture& p);
 std::vector<uint8_t> EncodeJpeg(const Picture& p, int quality);
 
+/// CRC-32 as PNG chunks use it (ISO 3309), for tests that edit PNG bytes.
+uint32_t Crc32(const uint8_t* p, size_t n);
+
 }  // namespace rheo::sketch::testing
