@@ -12,8 +12,6 @@
 namespace rheo::daemon {
 namespace {
 
-constexpr int64_t kApplyTimeoutNs = 2'000'000'000;
-
 grpc::Status NoDevice() {
   return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
                       "no haptic device is attached: start rheod with --device sim-spidar-g, "
@@ -47,15 +45,17 @@ ToolTelemetry WaitTool(const Engine& engine, uint64_t after_tick, int64_t timeou
   return t;
 }
 
-grpc::Status SubmitAndWait(Engine& engine, Command c) {
-  uint64_t seq = engine.Submit(c);
-  if (seq == 0)
-    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                        "the loop's command queue is full; retry shortly");
-  if (!engine.WaitApplied(seq, kApplyTimeoutNs))
-    return grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                        "the loop did not take the command within 2 s");
+grpc::Status CheckLeaseDuration(double seconds) {
+  if (!(seconds >= 0.0) || seconds > LeaseManager::kMaxSeconds)
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        "duration_s must be between 0 (10 s) and 3600 s");
   return grpc::Status::OK;
+}
+
+void FillLease(const LeaseManager::Lease& l, v1::Lease* out) {
+  out->set_lease_id(l.id);
+  out->set_holder(l.holder);
+  out->set_expires_in_s(LeaseManager::SecondsLeft(l));
 }
 
 void FillStatus(const DaemonContext& ctx, const ToolTelemetry& t, v1::DeviceStatus* out) {
@@ -176,28 +176,20 @@ grpc::Status DeviceServiceImpl::Calibrate(grpc::ServerContext*, const v1::Calibr
 grpc::Status DeviceServiceImpl::AcquireLease(grpc::ServerContext*,
                                              const v1::AcquireLeaseRequest* req, v1::Lease* out) {
   if (!ctx_.device_link) return NoDevice();
-  if (!(req->duration_s() >= 0.0) || req->duration_s() > LeaseManager::kMaxSeconds)
-    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                        "duration_s must be between 0 (10 s) and 3600 s");
+  if (grpc::Status s = CheckLeaseDuration(req->duration_s()); !s.ok()) return s;
   auto l = ctx_.leases->Acquire(req->client_name(), req->duration_s());
   if (!l.ok()) return ToGrpc(l.error());
-  out->set_lease_id(l->id);
-  out->set_holder(l->holder);
-  out->set_expires_in_s(LeaseManager::SecondsLeft(*l));
+  FillLease(*l, out);
   return grpc::Status::OK;
 }
 
 grpc::Status DeviceServiceImpl::RenewLease(grpc::ServerContext*, const v1::RenewLeaseRequest* req,
                                            v1::Lease* out) {
   if (!ctx_.device_link) return NoDevice();
-  if (!(req->duration_s() >= 0.0) || req->duration_s() > LeaseManager::kMaxSeconds)
-    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                        "duration_s must be between 0 (10 s) and 3600 s");
+  if (grpc::Status s = CheckLeaseDuration(req->duration_s()); !s.ok()) return s;
   auto l = ctx_.leases->Renew(req->lease_id(), req->duration_s());
   if (!l.ok()) return ToGrpc(l.error());
-  out->set_lease_id(l->id);
-  out->set_holder(l->holder);
-  out->set_expires_in_s(LeaseManager::SecondsLeft(*l));
+  FillLease(*l, out);
   return grpc::Status::OK;
 }
 

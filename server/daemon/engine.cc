@@ -9,6 +9,16 @@ Engine::Engine(EngineOptions options)
   for (LoopFrame& f : frames_.slots()) f.positions.reserve(3u * options_.max_frame_vertices);
 }
 
+namespace {
+// Frees what a command or a retired entry owns (outside the loop only).
+template <typename Owner>
+void FreeOwned(const Owner& o) {
+  delete o.contact;
+  delete o.object;
+  delete o.params;
+}
+}  // namespace
+
 Engine::~Engine() {
   Stop();
   for (int i = 0; i < slot_count_; ++i) {
@@ -18,11 +28,7 @@ Engine::~Engine() {
   slot_count_ = 0;
   DrainRetired();
   Command c;
-  while (commands_.Pop(c)) {
-    delete c.contact;
-    delete c.object;
-    delete c.params;
-  }
+  while (commands_.Pop(c)) FreeOwned(c);
 }
 
 void Engine::Start() {
@@ -52,11 +58,7 @@ bool Engine::WaitApplied(uint64_t seq, int64_t timeout_ns) const {
 
 void Engine::DrainRetired() {
   Retired r;
-  while (retired_.pop(r)) {
-    delete r.contact;
-    delete r.object;
-    delete r.params;
-  }
+  while (retired_.pop(r)) FreeOwned(r);
 }
 
 void Engine::Retire(Retired r) {

@@ -8,8 +8,6 @@
 namespace rheo::daemon {
 namespace {
 
-constexpr int64_t kApplyTimeoutNs = 2'000'000'000;
-
 v1::Integrator ToProto(sim::Integrator i) {
   return i == sim::Integrator::kImplicitEuler ? v1::INTEGRATOR_IMPLICIT
                                               : v1::INTEGRATOR_SYMPLECTIC_EULER;
@@ -45,17 +43,6 @@ Status ApplyParameterList(sim::Parameters& p,
   for (const v1::Parameter& q : list)
     if (Status s = sim::SetParameterByName(p, q.name(), q.value()); !s.ok()) return s;
   return sim::ValidateParameters(p);
-}
-
-grpc::Status Submit(Engine& engine, Command c) {
-  uint64_t seq = engine.Submit(c);
-  if (seq == 0)
-    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                        "the loop's command queue (1024 entries) is full; retry shortly");
-  if (!engine.WaitApplied(seq, kApplyTimeoutNs))
-    return grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                        "the loop did not take the command within 2 s");
-  return grpc::Status::OK;
 }
 
 }  // namespace
@@ -141,9 +128,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
       Command oc;
       oc.type = Command::Type::kSetToolOrigin;
       oc.vec = {origin.x(), origin.y(), origin.z()};
-      if (ctx_.engine->Submit(oc) == 0)
-        return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                            "the loop's command queue (1024 entries) is full; retry shortly");
+      if (ctx_.engine->Submit(oc) == 0) return QueueFull();
     }
     const Vec3 tool = origin + Vec3(t.device_position[0] - t.tool_origin[0],
                                     t.device_position[1] - t.tool_origin[1],
@@ -183,14 +168,11 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   uint64_t seq = ctx_.engine->Submit(c);
   if (seq == 0) {
     ctx_.scene->Erase(entry->instance_id);
-    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                        "the loop's command queue (1024 entries) is full; retry shortly");
+    return QueueFull();
   }
   object.release();  // the loop owns it now
   contact.release();
-  if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs))
-    return grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                        "the loop did not take the object within 2 s");
+  if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("object");
   FillSceneObject(*entry, false, out);
   return grpc::Status::OK;
 }
@@ -205,7 +187,7 @@ grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
   Command c;
   c.type = Command::Type::kRemoveObject;
   c.instance_id = req->instance_id();
-  if (grpc::Status s = Submit(*ctx_.engine, c); !s.ok()) return s;
+  if (grpc::Status s = SubmitAndWait(*ctx_.engine, c); !s.ok()) return s;
   ctx_.scene->Erase(req->instance_id());
   return grpc::Status::OK;
 }
@@ -248,13 +230,10 @@ grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
     uint64_t seq = ctx_.engine->Submit(c);
     if (seq == 0) {
       delete c.params;
-      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                          "the loop's command queue (1024 entries) is full; retry shortly");
+      return QueueFull();
     }
     ctx_.scene->Put(next);
-    if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs))
-      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                          "the loop did not take the change within 2 s");
+    if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("change");
   }
   FillParameters(updated.front()->params, out->mutable_parameters());
   return grpc::Status::OK;
@@ -295,7 +274,7 @@ grpc::Status SceneServiceImpl::Control(grpc::ServerContext*, const v1::ControlRe
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                           "command must be PAUSE, RESUME, RESET or STEP");
   }
-  if (grpc::Status s = Submit(*ctx_.engine, c); !s.ok()) return s;
+  if (grpc::Status s = SubmitAndWait(*ctx_.engine, c); !s.ok()) return s;
   out->set_paused(ctx_.engine->paused());
   out->set_sim_time(ctx_.engine->sim_time());
   return grpc::Status::OK;

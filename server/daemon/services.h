@@ -49,6 +49,15 @@ struct DaemonContext {
 /// Spells the device's faults for people: the driver's bits plus the daemon's stop states.
 std::vector<std::string> DeviceFaultList(const ToolTelemetry& t);
 
+/// How long a service waits for the loop to apply a command it submitted [ns].
+inline constexpr int64_t kApplyTimeoutNs = 2'000'000'000;
+/// The loop's command queue refused a command (RESOURCE_EXHAUSTED, retry).
+grpc::Status QueueFull();
+/// The loop did not apply `what` within kApplyTimeoutNs (UNAVAILABLE).
+grpc::Status NotApplied(const char* what);
+/// Submits a command that owns no memory and waits until the loop applied it.
+grpc::Status SubmitAndWait(Engine& engine, const Command& c);
+
 /// Loads a stored object, builds its simulation and hands it to the loop (AddToScene and
 /// CreateObject with add_to_scene).
 grpc::Status AddObjectToScene(const DaemonContext& ctx, const v1::AddToSceneRequest& request,

@@ -207,30 +207,26 @@ TEST(RheodScene, ObjectFallsAndStreamsTopologyOnceThenPositions) {
   ASSERT_TRUE(c.progress.back().has_scene_object());
   const uint32_t instance = c.progress.back().scene_object().instance_id();
 
-  // Bad parameter: named with its range; nothing changes.
-  {
+  auto set_k_v = [&](double value, v1::SetParametersResponse* r) {
     grpc::ClientContext ctx;
     SetDeadline(ctx);
     v1::SetParametersRequest set;
     set.set_instance_id(instance);
     auto* p = set.add_parameters();
     p->set_name("k_v");
-    p->set_value(-5);
+    p->set_value(value);
+    return scene->SetParameters(&ctx, set, r);
+  };
+  // Bad parameter: named with its range; nothing changes.
+  {
     v1::SetParametersResponse r;
-    grpc::Status s = scene->SetParameters(&ctx, set, &r);
+    grpc::Status s = set_k_v(-5, &r);
     EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
     EXPECT_NE(s.error_message().find("k_v"), std::string::npos) << s.error_message();
   }
   {
-    grpc::ClientContext ctx;
-    SetDeadline(ctx);
-    v1::SetParametersRequest set;
-    set.set_instance_id(instance);
-    auto* p = set.add_parameters();
-    p->set_name("k_v");
-    p->set_value(321);
     v1::SetParametersResponse r;
-    ASSERT_TRUE(scene->SetParameters(&ctx, set, &r).ok());
+    ASSERT_TRUE(set_k_v(321, &r).ok());
     bool seen = false;
     for (const auto& q : r.parameters())
       if (q.name() == "k_v") seen = q.value() == 321;
