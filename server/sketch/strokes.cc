@@ -71,22 +71,23 @@ class StrokeReader {
   StrokeReader(StrokeSet* out, int64_t max_points) : out_(out), max_points_(max_points) {}
 
   Status Read(std::string_view text) {
+    text_ = text;
     simdjson::padded_string padded(text.data(), text.size());
     simdjson::ondemand::parser parser;
     simdjson::ondemand::document doc;
-    if (auto e = parser.iterate(padded).get(doc)) return Syntax(e, doc, padded);
+    if (auto e = parser.iterate(padded).get(doc)) return SyntaxError(e, text_);
     simdjson::ondemand::json_type type;
-    if (auto e = doc.type().get(type)) return Syntax(e, doc, padded);
+    if (auto e = doc.type().get(type)) return SyntaxError(e, text_);
     if (type != simdjson::ondemand::json_type::object)
       return InvalidArgument(std::string("the sketch must be a JSON object, found ") +
                              TypeName(type));
     simdjson::ondemand::object root;
-    if (auto e = doc.get_object().get(root)) return Syntax(e, doc, padded);
+    if (auto e = doc.get_object().get(root)) return SyntaxError(e, text_);
     for (auto field : root) {
       std::string_view key;
-      if (auto e = field.unescaped_key().get(key)) return Syntax(e, doc, padded);
+      if (auto e = field.unescaped_key().get(key)) return SyntaxError(e, text_);
       simdjson::ondemand::value v;
-      if (auto e = field.value().get(v)) return Syntax(e, doc, padded);
+      if (auto e = field.value().get(v)) return SyntaxError(e, text_);
       Status s = Status::Ok();
       if (key == "width" || key == "height") {
         s = ReadSize(v, key);
@@ -95,33 +96,24 @@ class StrokeReader {
         seen_strokes = true;
         s = ReadStrokes(v);
       } else if (auto e = Skip(v, 1)) {
-        return Syntax(e, doc, padded);
+        return SyntaxError(e, text_);
       }
-      if (!s.ok()) return syntax_ ? Syntax(*syntax_, doc, padded) : s;
+      if (!s.ok()) return s;
     }
     // At the end of the text the parser has no location left; one still there is trailing data.
     const char* rest = nullptr;
     if (doc.current_location().get(rest) == simdjson::SUCCESS)
-      return Syntax(simdjson::TRAILING_CONTENT, doc, padded);
+      return SyntaxError(simdjson::TRAILING_CONTENT, text_);
     return Status::Ok();
   }
 
   bool seen_width = false, seen_height = false, seen_strokes = false;
 
  private:
-  // A syntax error found while reading a value: located by the caller, who holds the document.
-  Status Syntax(simdjson::error_code e, simdjson::ondemand::document&,
-                const simdjson::padded_string& text) {
-    return SyntaxError(e, std::string_view(text.data(), text.size()));
-  }
-  Status Defer(simdjson::error_code e) {
-    syntax_ = e;
-    return InvalidArgument("");
-  }
   // A type error, named at `where`; anything else is a syntax error.
   Status Expected(simdjson::ondemand::value& v, const std::string& where, const char* what) {
     simdjson::ondemand::json_type t;
-    if (auto e = v.type().get(t)) return Defer(e);
+    if (auto e = v.type().get(t)) return SyntaxError(e, text_);
     return InvalidArgument(where + ": expected " + what + ", found " + TypeName(t));
   }
 
@@ -172,8 +164,9 @@ class StrokeReader {
     double d = 0;
     if (v.get_double().get(d)) {
       simdjson::ondemand::json_type t;
-      if (auto e = v.type().get(t)) return Defer(e);
-      if (t == simdjson::ondemand::json_type::number) return Defer(simdjson::NUMBER_ERROR);
+      if (auto e = v.type().get(t)) return SyntaxError(e, text_);
+      if (t == simdjson::ondemand::json_type::number)
+        return SyntaxError(simdjson::NUMBER_ERROR, text_);
       return InvalidArgument("\"" + std::string(key) + "\" must be a number, found " + TypeName(t));
     }
     if (!(d >= 1 && d <= 1e6) || d != std::floor(d))
@@ -189,13 +182,13 @@ class StrokeReader {
     simdjson::ondemand::array strokes;
     if (v.get_array().get(strokes)) {
       simdjson::ondemand::json_type t;
-      if (auto e = v.type().get(t)) return Defer(e);
+      if (auto e = v.type().get(t)) return SyntaxError(e, text_);
       return InvalidArgument(std::string("\"strokes\" must be an array of strokes, found ") +
                              TypeName(t));
     }
     for (auto stroke_r : strokes) {
       simdjson::ondemand::value stroke_v;
-      if (auto e = stroke_r.get(stroke_v)) return Defer(e);
+      if (auto e = stroke_r.get(stroke_v)) return SyntaxError(e, text_);
       const std::string where = "strokes[" + std::to_string(out_->strokes.size()) + "]";
       out_->strokes.emplace_back();
       simdjson::ondemand::array stroke;
@@ -203,7 +196,7 @@ class StrokeReader {
         return Expected(stroke_v, where, "an array of [x, y] points");
       for (auto point_r : stroke) {
         simdjson::ondemand::value point_v;
-        if (auto e = point_r.get(point_v)) return Defer(e);
+        if (auto e = point_r.get(point_v)) return SyntaxError(e, text_);
         if (++points_ > max_points_)
           return ResourceExhausted("the stroke list has more than " + std::to_string(max_points_) +
                                    " points (limit max_stroke_points)");
@@ -215,12 +208,12 @@ class StrokeReader {
         int n = 0;
         for (auto coord_r : point) {
           simdjson::ondemand::value c;
-          if (auto e = coord_r.get(c)) return Defer(e);
+          if (auto e = coord_r.get(c)) return SyntaxError(e, text_);
           if (n >= 2) return InvalidArgument(here() + ": a point must be [x, y] with two numbers");
           double d = 0;
           if (c.get_double().get(d)) {
             simdjson::ondemand::json_type t;
-            if (auto e = c.type().get(t)) return Defer(e);
+            if (auto e = c.type().get(t)) return SyntaxError(e, text_);
             if (t == simdjson::ondemand::json_type::number) {
               return InvalidArgument(here() + ": a coordinate is outside -1e6..1e6");
             }
@@ -240,7 +233,7 @@ class StrokeReader {
   StrokeSet* out_;
   int64_t max_points_;
   int64_t points_ = 0;
-  std::optional<simdjson::error_code> syntax_;
+  std::string_view text_;  // the whole input, for locating syntax errors
 };
 
 // A place on a polyline: edge index i (from p[i] to p[i+1]) and fraction t along it.
