@@ -2,6 +2,8 @@
 //   sim_bench speed [max_tets]       median wall time of one 1 ms tick vs mesh size
 //   sim_bench precision [svg_path]   work-precision: CPU time per simulated second vs error
 //   sim_bench bullet                 btSoftBody on the same tets and dt, vs the same reference
+//   sim_bench kernels [tets]         time of each force kernel and Jacobian product
+//   sim_bench cg                     implicit integrator: CG tolerance vs error and cost
 // One thread throughout (the library has none).
 #include <algorithm>
 #include <chrono>
@@ -14,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "sim/forces.h"
+#include "sim/integrators.h"
 #include "sim/primitives.h"
 #include "sim/sim.h"
 
@@ -85,6 +89,8 @@ int Speed(int max_tets) {
       s.Translate(Vec3(0, 0.005, 0));
       const int ticks = target >= 100000 ? 15 : target >= 20000 ? 40 : 200;
       for (int k = 0; k < 5; ++k) s.Step(1e-3);
+      if (method.integrator == Integrator::kImplicitEuler)
+        std::printf("# shape springs explicit at 1 ms: %d\n", s.ShapeSpringsExplicit(1e-3));
       std::vector<double> us;
       int64_t sub = 0, it = 0;
       for (int k = 0; k < ticks; ++k) {
@@ -102,6 +108,58 @@ int Speed(int max_tets) {
                   med, Percentile(us, 0.9), med / (mesh.tets.size() / 1e3), double(it) / ticks);
     }
   }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Where the time of one tick goes: each force kernel and one Jacobian product, median of many.
+int Kernels(int target) {
+  const TetMesh mesh = BoxWithTets(target);
+  Parameters p = FindPreset("organ")->params;
+  Model m = *BuildModel(mesh, p.density);
+  State s;
+  InitState(m, p.voigt_ratio, s);
+  for (Vec3& x : s.x) x *= 1.01;  // a little stretch so every term is loaded
+  const internal::ActiveTerms all = internal::DecideTerms(m, p);
+  auto time_us = [](auto&& fn) {
+    std::vector<double> us;
+    for (int k = 0; k < 301; ++k) {
+      const auto t0 = std::chrono::steady_clock::now();
+      fn();
+      us.push_back(
+          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+    }
+    return Median(us);
+  };
+  auto only = [&](bool internal::ActiveTerms::*term) {
+    internal::ActiveTerms t{};
+    t.*term = true;
+    return t;
+  };
+  std::printf("# kernels: %zu tets, %d nodes, %zu edges, %zu faces; median us of one call\n",
+              m.tets.size(), m.num_nodes, m.edges.size(), m.faces.size());
+  std::printf("%-28s %10s %10s\n", "kernel", "forces", "linearised");
+  const std::pair<const char*, bool internal::ActiveTerms::*> terms[] = {
+      {"edges (eq. 2-3)", &internal::ActiveTerms::edges},
+      {"global volume (eq. 4)", &internal::ActiveTerms::global_volume},
+      {"area (eq. 5)", &internal::ActiveTerms::area},
+      {"tet volume (eq. 6)", &internal::ActiveTerms::tet_volume},
+  };
+  for (const auto& [name, term] : terms) {
+    const internal::ActiveTerms t = only(term);
+    const double f = time_us([&] { internal::ComputeForces(m, p, t, s, 1e-3, true, {}); });
+    const double l = time_us([&] { internal::ComputeForces(m, p, t, s, 1e-3, true, t); });
+    std::printf("%-28s %10.1f %10.1f\n", name, f, l);
+  }
+  const double all_f = time_us([&] { internal::ComputeForces(m, p, all, s, 1e-3, true, {}); });
+  const double all_l = time_us([&] { internal::ComputeForces(m, p, all, s, 1e-3, true, all); });
+  std::printf("%-28s %10.1f %10.1f\n", "all terms", all_f, all_l);
+  const double jac = time_us([&] { internal::ApplyJacobian(m, all, s, s.v, s.cg_q, false); });
+  std::printf("%-28s %10.1f\n", "Jacobian product (all)", jac);
+  const double jac_e = time_us([&] {
+    internal::ApplyJacobian(m, only(&internal::ActiveTerms::edges), s, s.v, s.cg_q, false);
+  });
+  std::printf("%-28s %10.1f\n", "Jacobian product (edges)", jac_e);
   return 0;
 }
 
@@ -130,6 +188,7 @@ struct RunResult {
   double cpu = 0.0;  // [s]
   int64_t substeps = 0;
   int64_t restores = 0;
+  int64_t iterations = 0;  // CG iterations
 };
 
 RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_end,
@@ -159,6 +218,7 @@ RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_en
     const StepResult st = s.Step(dt);
     r.substeps += st.substeps;
     r.restores += st.restored;
+    r.iterations += st.solver_iterations;
   }
   r.cpu = CpuSeconds() - t0;
   r.x.assign(s.positions().begin(), s.positions().end());
@@ -260,6 +320,25 @@ int Precision(const std::string& svg) {
   if (!svg.empty()) {
     WriteSvg(pts, svg);
     std::printf("# plot written to %s\n", svg.c_str());
+  }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The implicit integrator's CG tolerance against the error it costs (the default's justification).
+int CgSweep() {
+  const double t_end = 0.5, dt = 1e-3;
+  std::printf("# implicit-euler, tick 1 ms: CG tolerance vs error (as in precision) and cost\n");
+  std::printf("%-6s %10s %12s %10s %10s\n", "scene", "cg_tol", "error", "cpu_s/s", "CG it/tick");
+  for (const Scene& sc : Scenes()) {
+    const RunResult ref = RunScene(sc, kMethods[0], 1e-5, t_end);
+    const double size =
+        (**SimObject::Create(sc.mesh, sc.params, Integrator::kSymplecticEuler)).model().size;
+    for (double tol : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 1e-4, 1e-5, 1e-6}) {
+      const RunResult r = RunScene(sc, kMethods[2], dt, t_end, tol);
+      std::printf("%-6s %10.0e %12.3e %10.4f %10.1f\n", sc.name, tol, RmsError(r.x, ref.x, size),
+                  r.cpu / t_end, double(r.iterations) / std::llround(t_end / dt));
+    }
   }
   return 0;
 }
@@ -411,6 +490,8 @@ int Bullet() {
 int main(int argc, char** argv) {
   const std::string mode = argc > 1 ? argv[1] : "speed";
   if (mode == "speed") return Speed(argc > 2 ? std::atoi(argv[2]) : 100000);
+  if (mode == "cg") return CgSweep();
+  if (mode == "kernels") return Kernels(argc > 2 ? std::atoi(argv[2]) : 5000);
   if (mode == "precision") return Precision(argc > 2 ? argv[2] : "sim_work_precision.svg");
 #ifdef RHEO_HAVE_BULLET
   if (mode == "bullet") return Bullet();

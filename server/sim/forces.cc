@@ -5,6 +5,16 @@
 
 #include "sim/element.h"
 
+// Hot kernels are compiled for the x86-64 baseline and for x86-64-v3 (AVX2, FMA); the loader picks
+// the best one the CPU runs (GCC function multi-versioning). Off under sanitizers and elsewhere.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+    !defined(RHEO_SIM_NO_CLONES) && !defined(__SANITIZE_ADDRESS__) &&  \
+    !defined(__SANITIZE_THREAD__)
+#define RHEO_SIM_KERNEL __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define RHEO_SIM_KERNEL
+#endif
+
 namespace rheo::sim::internal {
 
 ActiveTerms DecideTerms(const Model& model, const Parameters& p) {
@@ -27,8 +37,25 @@ double EnclosedVolume(const Model& model, std::span<const Vec3> x) {
 
 namespace {
 
-void EdgeForces(const Model& m, const Parameters& p, bool nonlinear, State& s, double h,
-                bool advance_a, bool linearise) {
+// The element kernels run in blocks: a vectorisable pass computes each element of the block from
+// gathered node data into block-local arrays (no stores to shared nodes, so `omp simd` is safe),
+// then a short scalar pass adds the results to the nodes. Built twice where the compiler can
+// (x86-64 baseline and x86-64-v3 with AVX2/FMA), the faster one chosen when the library loads.
+constexpr int kBlock = 64;
+
+// phi(x) = (1 - exp(-x)) / x as a polynomial, accurate to 1e-16 for |x| < kPhiPolyLimit; lanes
+// outside take the exact expression in the scalar pass.
+constexpr double kPhiPolyLimit = 0.05;
+inline double PhiPoly(double x) {
+  return 1.0 -
+         x * (1.0 / 2 -
+              x * (1.0 / 6 -
+                   x * (1.0 / 24 -
+                        x * (1.0 / 120 - x * (1.0 / 720 - x * (1.0 / 5040 - x * (1.0 / 40320)))))));
+}
+
+RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlinear, State& s,
+                                double h, bool advance_a, bool linearise) {
   const bool diag_damping = !linearise && p.implicit_damping > 0.5;
   if (diag_damping) std::fill(s.damp_diag.begin(), s.damp_diag.end(), 0.0);
   const double k_v = p.k_v;
@@ -37,45 +64,96 @@ void EdgeForces(const Model& m, const Parameters& p, bool nonlinear, State& s, d
   const double c_max = DamperViscosity(p, p.f_min);
   const double c_min = DamperViscosity(p, p.f_max);
   const size_t ne = m.edges.size();
-  Vec3* f = s.f.data();
-  const Vec3* x = s.x.data();
-  const Vec3* v = s.v.data();
-  for (size_t k = 0; k < ne; ++k) {
-    const int32_t i = m.edges[k][0];
-    const int32_t j = m.edges[k][1];
-    const Vec3 d = x[j] - x[i];
-    const double l = d.norm();
-    const double inv_l = l > 0.0 ? 1.0 / l : 0.0;
-    const Vec3 e = d * inv_l;
-    const double l_dot = e.dot(v[j] - v[i]);
+  const int32_t* E = m.edges.data()->data();
+  const double* RL = m.edge_rest_length.data();
+  const double* X = s.x.data()->data();
+  const double* V = s.v.data()->data();
+  double* F = s.f.data()->data();
+  double* A = s.a.data();
+  double* T = s.tension.data();
+  alignas(64) double dxv[3][kBlock], dvv[3][kBlock], cd[kBlock], fx[kBlock], fy[kBlock], fz[kBlock],
+      ex[kBlock], ey[kBlock], ez[kBlock], len[kBlock], ldot[kBlock], a_next[kBlock], xarg[kBlock],
+      ten[kBlock];
+  for (size_t k0 = 0; k0 < ne; k0 += kBlock) {
+    const int nb = static_cast<int>(std::min<size_t>(kBlock, ne - k0));
     // Eq. 3 with the force of the previous substep; exp() only inside (f_min, f_max).
-    double c_d = c_max;
-    if (nonlinear) {
-      const double f_abs = std::abs(s.tension[k]);
-      c_d = f_abs <= p.f_min   ? c_max
-            : f_abs >= p.f_max ? c_min
-                               : p.damper_a * std::exp(-p.damper_b * f_abs);
+    // Gather (scalar loads: hardware gathers are slower than this on common CPUs).
+    for (int l = 0; l < nb; ++l) {
+      const size_t k = k0 + l;
+      const int32_t i = E[2 * k], j = E[2 * k + 1];
+      for (int c = 0; c < 3; ++c) {
+        dxv[c][l] = X[3 * j + c] - X[3 * i + c];
+        dvv[c][l] = V[3 * j + c] - V[3 * i + c];
+      }
+      double c_d = c_max;
+      if (nonlinear) {
+        const double f_abs = std::abs(T[k0 + l]);
+        c_d = f_abs <= p.f_min   ? c_max
+              : f_abs >= p.f_max ? c_min
+                                 : p.damper_a * std::exp(-p.damper_b * f_abs);
+      }
+      cd[l] = c_d;
     }
-    const double rest_voigt = ratio * m.edge_rest_length[k];
-    const double a = s.a[k];
-    const double tension = ThreeElementTension(k_v, c_v, c_d, a, l, rest_voigt, l_dot);
-    f[i] += tension * e;
-    f[j] -= tension * e;
-    s.tension[k] = tension;
-    if (diag_damping) {
-      const double c_eff = c_d / (c_v + c_d) * c_v;
-      s.damp_diag[i] += c_eff;
-      s.damp_diag[j] += c_eff;
+#pragma omp simd
+    for (int l = 0; l < nb; ++l) {
+      const size_t k = k0 + l;
+      const double dx = dxv[0][l], dy = dxv[1][l], dz = dxv[2][l];
+      const double L = std::sqrt(dx * dx + dy * dy + dz * dz);
+      const double inv_l = L > 0.0 ? 1.0 / L : 0.0;
+      const double ux = dx * inv_l, uy = dy * inv_l, uz = dz * inv_l;
+      const double l_dot = ux * dvv[0][l] + uy * dvv[1][l] + uz * dvv[2][l];
+      const double c_d = cd[l];
+      const double c_sum = c_v + c_d;
+      const double share = c_d / c_sum;
+      const double rest_voigt = ratio * RL[k];
+      const double a = A[k];
+      // Eq. 2 (element.h ThreeElementTension).
+      const double tension = share * (k_v * (a * L - rest_voigt) + c_v * l_dot);
+      fx[l] = tension * ux;
+      fy[l] = tension * uy;
+      fz[l] = tension * uz;
+      ex[l] = ux;
+      ey[l] = uy;
+      ez[l] = uz;
+      len[l] = L;
+      ldot[l] = l_dot;
+      ten[l] = tension;
+      // element.h AdvanceVoigtRatio, phi by its polynomial.
+      const double inv_den = inv_l / c_sum;
+      const double alpha = (k_v * rest_voigt + c_d * l_dot) * inv_den;
+      const double beta = (k_v * L + c_sum * l_dot) * inv_den;
+      const double x = beta * h;
+      xarg[l] = x;
+      a_next[l] = L > 0.0 ? a + (alpha - beta * a) * h * PhiPoly(x) : a;
     }
-    if (linearise) {
-      const double share = c_d / (c_v + c_d);
-      s.edge_dir[k] = e;
-      s.edge_axial_k[k] = h * h * share * k_v * std::max(a, 0.0);
-      s.edge_axial_c[k] = h * share * c_v;
-      s.edge_lateral[k] = h * h * std::max(tension, 0.0) * inv_l;
-    }
-    if (advance_a && l > 0.0) {
-      s.a[k] = AdvanceVoigtRatio(k_v, c_v, c_d, a, l, rest_voigt, l_dot, h);
+    for (int l = 0; l < nb; ++l) {
+      const size_t k = k0 + l;
+      const int32_t i = E[2 * k], j = E[2 * k + 1];
+      F[3 * i] += fx[l];
+      F[3 * i + 1] += fy[l];
+      F[3 * i + 2] += fz[l];
+      F[3 * j] -= fx[l];
+      F[3 * j + 1] -= fy[l];
+      F[3 * j + 2] -= fz[l];
+      const double c_d = cd[l];
+      T[k] = ten[l];
+      if (diag_damping) {
+        const double c_eff = c_d / (c_v + c_d) * c_v;
+        s.damp_diag[i] += c_eff;
+        s.damp_diag[j] += c_eff;
+      }
+      if (linearise) {
+        const double share = c_d / (c_v + c_d);
+        s.edge_dir[k] = Vec3(ex[l], ey[l], ez[l]);
+        s.edge_axial_k[k] = h * h * share * k_v * std::max(A[k], 0.0);
+        s.edge_axial_c[k] = h * share * c_v;
+        s.edge_lateral[k] = h * h * std::max(T[k], 0.0) / std::max(len[l], 1e-300);
+      }
+      if (advance_a) {
+        A[k] = std::abs(xarg[l]) < kPhiPolyLimit || !(len[l] > 0.0)
+                   ? a_next[l]
+                   : AdvanceVoigtRatio(k_v, c_v, c_d, A[k], len[l], ratio * RL[k], ldot[l], h);
+      }
     }
   }
 }
@@ -110,112 +188,175 @@ void GlobalVolumeForces(const Model& m, const Parameters& p, State& s, double h,
 // Eq. 5. u_i is the unit in-plane direction, perpendicular to the edge facing i, in which moving i
 // grows the area; the force is restoring, F_i = -k (S - S0)/S0 (u_i - (u_j + u_k)/2), and sums to
 // zero over the face.
-void AreaForces(const Model& m, const Parameters& p, State& s, double h, bool linearise) {
+RHEO_SIM_KERNEL void AreaForces(const Model& m, const Parameters& p, State& s, double h,
+                                bool linearise) {
   const double kk = p.area_k;
   const size_t nf = m.faces.size();
-  for (size_t k = 0; k < nf; ++k) {
-    const auto& fc = m.faces[k];
-    const Vec3& a = s.x[fc[0]];
-    const Vec3& b = s.x[fc[1]];
-    const Vec3& c = s.x[fc[2]];
-    const Vec3 nrm = (b - a).cross(c - a);
-    const double area2 = nrm.norm();
-    const double s0 = m.face_rest_area[k];
-    if (!(area2 > 1e-300) || !(s0 > 0.0)) continue;
-    const Vec3 nh = nrm / area2;
-    const Vec3 ea = c - b, eb = a - c, ec = b - a;
-    const double la = ea.norm(), lb = eb.norm(), lc = ec.norm();
-    const Vec3 ua = nh.cross(ea) / la;
-    const Vec3 ub = nh.cross(eb) / lb;
-    const Vec3 uc = nh.cross(ec) / lc;
-    const Vec3 wa = ua - 0.5 * (ub + uc);
-    const Vec3 wb = ub - 0.5 * (ua + uc);
-    const Vec3 wc = uc - 0.5 * (ua + ub);
-    const double mag = -kk * (0.5 * area2 - s0) / s0;
-    s.f[fc[0]] += mag * wa;
-    s.f[fc[1]] += mag * wb;
-    s.f[fc[2]] += mag * wc;
-    if (linearise) {
-      // Gauss-Newton: dF_i/dx_j ~ -(k/S0) w_i grad_j^T, symmetrised as sigma w w^T, |grad| ~ l/2.
-      const double sigma = kk / s0 * (la + lb + lc) / 6.0 / 1.5;
-      s.shape_coef[k] = h * h * sigma;
-      s.shape_dir[3 * k] = wa;
-      s.shape_dir[3 * k + 1] = wb;
-      s.shape_dir[3 * k + 2] = wc;
+  const int32_t* Fc = m.faces.data()->data();
+  const double* S0 = m.face_rest_area.data();
+  const double* X = s.x.data()->data();
+  double* F = s.f.data()->data();
+  alignas(64) double ev[9][kBlock], w[9][kBlock], mag[kBlock], perim[kBlock];
+  for (size_t k0 = 0; k0 < nf; k0 += kBlock) {
+    const int nb = static_cast<int>(std::min<size_t>(kBlock, nf - k0));
+    for (int l = 0; l < nb; ++l) {
+      const size_t k = k0 + l;
+      const int32_t ia = Fc[3 * k], ib = Fc[3 * k + 1], ic = Fc[3 * k + 2];
+      for (int c = 0; c < 3; ++c) {
+        ev[c][l] = X[3 * ic + c] - X[3 * ib + c];
+        ev[3 + c][l] = X[3 * ia + c] - X[3 * ic + c];
+        ev[6 + c][l] = X[3 * ib + c] - X[3 * ia + c];
+      }
+    }
+#pragma omp simd
+    for (int l = 0; l < nb; ++l) {
+      const size_t k = k0 + l;
+      double e[3][3];  // the edge facing each vertex: c - b, a - c, b - a
+      for (int q = 0; q < 3; ++q) {
+        for (int c = 0; c < 3; ++c) e[q][c] = ev[3 * q + c][l];
+      }
+      // n = (b - a) x (c - a) = e2 x (-e1).
+      const double nx = -(e[2][1] * e[1][2] - e[2][2] * e[1][1]);
+      const double ny = -(e[2][2] * e[1][0] - e[2][0] * e[1][2]);
+      const double nz = -(e[2][0] * e[1][1] - e[2][1] * e[1][0]);
+      const double area2 = std::sqrt(nx * nx + ny * ny + nz * nz);
+      const double s0 = S0[k];
+      const bool ok = area2 > 1e-300 && s0 > 0.0;
+      const double inv_n = ok ? 1.0 / area2 : 0.0;
+      const double hx = nx * inv_n, hy = ny * inv_n, hz = nz * inv_n;
+      double u[3][3];
+      double lsum = 0.0;
+      for (int q = 0; q < 3; ++q) {
+        const double lq = std::sqrt(e[q][0] * e[q][0] + e[q][1] * e[q][1] + e[q][2] * e[q][2]);
+        lsum += lq;
+        const double inv_lq = lq > 0.0 ? 1.0 / lq : 0.0;
+        u[q][0] = (hy * e[q][2] - hz * e[q][1]) * inv_lq;
+        u[q][1] = (hz * e[q][0] - hx * e[q][2]) * inv_lq;
+        u[q][2] = (hx * e[q][1] - hy * e[q][0]) * inv_lq;
+      }
+      for (int c = 0; c < 3; ++c) {
+        w[c][l] = u[0][c] - 0.5 * (u[1][c] + u[2][c]);
+        w[3 + c][l] = u[1][c] - 0.5 * (u[0][c] + u[2][c]);
+        w[6 + c][l] = u[2][c] - 0.5 * (u[0][c] + u[1][c]);
+      }
+      mag[l] = ok ? -kk * (0.5 * area2 - s0) / s0 : 0.0;
+      perim[l] = ok ? lsum : -1.0;
+    }
+    for (int l = 0; l < nb; ++l) {
+      if (!(perim[l] >= 0.0)) continue;
+      const size_t k = k0 + l;
+      for (int q = 0; q < 3; ++q) {
+        const int32_t node = Fc[3 * k + q];
+        for (int c = 0; c < 3; ++c) F[3 * node + c] += mag[l] * w[3 * q + c][l];
+      }
+      if (linearise) {
+        // Gauss-Newton: dF_i/dx_j ~ -(k/S0) w_i grad_j^T, symmetrised as sigma w w^T, |grad| ~ l/2.
+        const double sigma = kk / S0[k] * perim[l] / 6.0 / 1.5;
+        s.shape_coef[k] = h * h * sigma;
+        for (int q = 0; q < 3; ++q)
+          s.shape_dir[3 * k + q] = Vec3(w[3 * q][l], w[3 * q + 1][l], w[3 * q + 2][l]);
+      }
     }
   }
 }
 
 // Eq. 6, restoring: F_i = -k (V - V0)/|V0| (u_i - (u_j + u_k + u_l)/3), u_i the unit gradient of
 // the signed volume at node i (normal to the opposite face, towards i). An inverted tet (V < 0)
-// gets a large push back through its face.
-template <bool kLinearise>
-void TetForcesT(const Model& m, const Parameters& p, State& s, double h) {
-  // Divisions are hoisted out of the loop: without -ffast-math every "/ 6.0" or "/ 3.0" on a
-  // vector is three real divisions, which made this loop divide-bound.
+// gets a large push back through its face. Tets with a non-positive rest volume are skipped.
+RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, double h,
+                               bool linearise) {
   const double kk = p.tet_k;
   const size_t nt = m.tets.size();
   const size_t face_off = m.faces.size();
   constexpr double kSixth = 1.0 / 6.0, kThird = 1.0 / 3.0;
-  Vec3* f = s.f.data();
-  const Vec3* x = s.x.data();
-  for (size_t k = 0; k < nt; ++k) {
-    const double v0 = m.tet_rest_volume[k];
-    if (!(v0 > 0.0)) continue;
-    const auto& t = m.tets[k];
-    const Vec3& x0 = x[t[0]];
-    const Vec3 d1 = x[t[1]] - x0;
-    const Vec3 d2 = x[t[2]] - x0;
-    const Vec3 d3 = x[t[3]] - x0;
-    // 6 x the gradients of the signed volume at each node.
-    Vec3 g[4];
-    g[1] = d2.cross(d3);
-    g[2] = d3.cross(d1);
-    g[3] = d1.cross(d2);
-    g[0] = -(g[1] + g[2] + g[3]);
-    const double vol = d1.dot(g[1]) * kSixth;
-    Vec3 u[4];
-    double gsum = 0.0;
-    for (int q = 0; q < 4; ++q) {
-      const double gn = g[q].norm();
-      gsum += gn;
-      u[q] = gn > 1e-300 ? Vec3(g[q] * (1.0 / gn)) : Vec3::Zero();
+  const int32_t* Tt = m.tets.data()->data();
+  const double* V0 = m.tet_rest_volume.data();
+  const double* X = s.x.data()->data();
+  double* F = s.f.data()->data();
+  alignas(64) double dv[9][kBlock], w[12][kBlock], mag3[kBlock], gsum[kBlock];
+  for (size_t k0 = 0; k0 < nt; k0 += kBlock) {
+    const int nb = static_cast<int>(std::min<size_t>(kBlock, nt - k0));
+    for (int l = 0; l < nb; ++l) {
+      const size_t k = k0 + l;
+      const int32_t i0 = Tt[4 * k], i1 = Tt[4 * k + 1], i2 = Tt[4 * k + 2], i3 = Tt[4 * k + 3];
+      for (int c = 0; c < 3; ++c) {
+        const double x0 = X[3 * i0 + c];
+        dv[c][l] = X[3 * i1 + c] - x0;
+        dv[3 + c][l] = X[3 * i2 + c] - x0;
+        dv[6 + c][l] = X[3 * i3 + c] - x0;
+      }
     }
-    const Vec3 usum = u[0] + u[1] + u[2] + u[3];
-    const double mag = -kk * (vol - v0) / v0;
-    // w_q = u_q - (usum - u_q) / 3 = (4 u_q - usum) / 3.
-    const double mag3 = mag * kThird;
-    for (int q = 0; q < 4; ++q) {
-      const Vec3 w3 = 4.0 * u[q] - usum;
-      f[t[q]] += mag3 * w3;
-      if constexpr (kLinearise) s.shape_dir[3 * face_off + 4 * k + q] = w3 * kThird;
+#pragma omp simd
+    for (int l = 0; l < nb; ++l) {
+      const size_t k = k0 + l;
+      double d1[3], d2[3], d3[3];
+      for (int c = 0; c < 3; ++c) {
+        d1[c] = dv[c][l];
+        d2[c] = dv[3 + c][l];
+        d3[c] = dv[6 + c][l];
+      }
+      // 6 x the gradients of the signed volume at each node.
+      double g[4][3];
+      g[1][0] = d2[1] * d3[2] - d2[2] * d3[1];
+      g[1][1] = d2[2] * d3[0] - d2[0] * d3[2];
+      g[1][2] = d2[0] * d3[1] - d2[1] * d3[0];
+      g[2][0] = d3[1] * d1[2] - d3[2] * d1[1];
+      g[2][1] = d3[2] * d1[0] - d3[0] * d1[2];
+      g[2][2] = d3[0] * d1[1] - d3[1] * d1[0];
+      g[3][0] = d1[1] * d2[2] - d1[2] * d2[1];
+      g[3][1] = d1[2] * d2[0] - d1[0] * d2[2];
+      g[3][2] = d1[0] * d2[1] - d1[1] * d2[0];
+      for (int c = 0; c < 3; ++c) g[0][c] = -(g[1][c] + g[2][c] + g[3][c]);
+      const double vol = (d1[0] * g[1][0] + d1[1] * g[1][1] + d1[2] * g[1][2]) * kSixth;
+      double u[4][3];
+      double gs = 0.0;
+      for (int q = 0; q < 4; ++q) {
+        const double gn = std::sqrt(g[q][0] * g[q][0] + g[q][1] * g[q][1] + g[q][2] * g[q][2]);
+        gs += gn;
+        const double inv = gn > 1e-300 ? 1.0 / gn : 0.0;
+        for (int c = 0; c < 3; ++c) u[q][c] = g[q][c] * inv;
+      }
+      // w_q = u_q - (usum - u_q) / 3 = (4 u_q - usum) / 3; w[] holds 3 w_q.
+      for (int c = 0; c < 3; ++c) {
+        const double usum = u[0][c] + u[1][c] + u[2][c] + u[3][c];
+        for (int q = 0; q < 4; ++q) w[3 * q + c][l] = 4.0 * u[q][c] - usum;
+      }
+      const double v0 = V0[k];
+      mag3[l] = v0 > 0.0 ? -kk * (vol - v0) / v0 * kThird : 0.0;
+      gsum[l] = gs;
     }
-    if constexpr (kLinearise)
-      s.shape_coef[face_off + k] = h * h * kk / v0 * (gsum * kSixth / 4.0) / (4.0 / 3.0);
+    for (int l = 0; l < nb; ++l) {
+      const size_t k = k0 + l;
+      if (!(V0[k] > 0.0)) continue;
+      for (int q = 0; q < 4; ++q) {
+        const int32_t node = Tt[4 * k + q];
+        for (int c = 0; c < 3; ++c) F[3 * node + c] += mag3[l] * w[3 * q + c][l];
+      }
+      if (linearise) {
+        for (int q = 0; q < 4; ++q) {
+          s.shape_dir[3 * face_off + 4 * k + q] =
+              kThird * Vec3(w[3 * q][l], w[3 * q + 1][l], w[3 * q + 2][l]);
+        }
+        s.shape_coef[face_off + k] = h * h * kk / V0[k] * (gsum[l] * kSixth / 4.0) / (4.0 / 3.0);
+      }
+    }
   }
-}
-
-void TetForces(const Model& m, const Parameters& p, State& s, double h, bool linearise) {
-  if (linearise)
-    TetForcesT<true>(m, p, s, h);
-  else
-    TetForcesT<false>(m, p, s, h);
 }
 
 }  // namespace
 
 void ComputeForces(const Model& m, const Parameters& p, const ActiveTerms& terms, State& s,
-                   double h, bool advance_a, bool linearise) {
+                   double h, bool advance_a, const ActiveTerms& lin) {
   const int32_t n = m.num_nodes;
   const double g = terms.gravity ? p.gravity : 0.0;
   for (int32_t i = 0; i < n; ++i) {
     s.f[i] = s.f_ext[i];
     s.f[i].y() -= m.mass[i] * g;
   }
-  if (terms.edges) EdgeForces(m, p, terms.nonlinear_damper, s, h, advance_a, linearise);
-  if (terms.global_volume) GlobalVolumeForces(m, p, s, h, linearise);
-  if (terms.area) AreaForces(m, p, s, h, linearise);
-  if (terms.tet_volume) TetForces(m, p, s, h, linearise);
+  if (terms.edges) EdgeForces(m, p, terms.nonlinear_damper, s, h, advance_a, lin.edges);
+  if (terms.global_volume) GlobalVolumeForces(m, p, s, h, lin.global_volume);
+  if (terms.area) AreaForces(m, p, s, h, lin.area);
+  if (terms.tet_volume) TetForces(m, p, s, h, lin.tet_volume);
 }
 
 void ApplyJacobian(const Model& m, const ActiveTerms& terms, const State& s,

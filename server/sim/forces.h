@@ -23,13 +23,14 @@ struct ActiveTerms {
 ActiveTerms DecideTerms(const Model& model, const Parameters& params);
 
 /// state.f = every force at (state.x, state.v); updates state.tension. With `advance_a`, advances
-/// every Voigt ratio over h holding the current l, dl/dt. With `linearise`, fills the per-element
-/// blocks of the implicit system for step h.
+/// every Voigt ratio over h holding the current l, dl/dt. For each term on in `linearise` (a subset
+/// of `terms`; all off for the explicit integrator), fills its blocks of the implicit system for h.
 void ComputeForces(const Model& model, const Parameters& params, const ActiveTerms& terms,
-                   State& state, double h, bool advance_a, bool linearise);
+                   State& state, double h, bool advance_a, const ActiveTerms& linearise);
 
 /// out = (h D + h^2 K) p with D, K the positive semi-definite damping and stiffness
-/// approximations stored by ComputeForces(linearise); with stiffness_only, only h^2 K p.
+/// approximations stored by ComputeForces for the terms on in `terms`; with stiffness_only, only
+/// h^2 K p.
 void ApplyJacobian(const Model& model, const ActiveTerms& terms, const State& state,
                    std::span<const Vec3> p, std::span<Vec3> out, bool stiffness_only);
 

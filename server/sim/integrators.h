@@ -18,8 +18,10 @@ struct SolveStats {
 
 /// Linearised backward Euler (Baraff-Witkin): (M + h D + h^2 K) dv = h f + h^2 K_f v with the
 /// PSD approximations of forces.h; dv by Jacobi-preconditioned CG warm-started with the previous
-/// dv; then the same floor projection and x += h v.
+/// dv; then the same floor projection and x += h v. Only the terms on in `implicit_terms` enter
+/// D and K; the others act explicitly (the caller keeps h within their explicit bound).
 SolveStats ImplicitEulerSubstep(const Model& model, const Parameters& params,
-                                const ActiveTerms& terms, State& state, double h, double tick);
+                                const ActiveTerms& terms, const ActiveTerms& implicit_terms,
+                                State& state, double h, double tick);
 
 }  // namespace rheo::sim::internal

@@ -152,6 +152,7 @@ void SimObject::UpdateDerived() {
     omega2 = std::max(omega2, acc[i].x());
     lambda_c = std::max(lambda_c, acc[i].y());
   }
+  shape_checked_h_ = -1.0;
   if (terms.global_volume) {
     // Rest-shape volume gradient; a_i = sum over faces of (b - a) x (c - a) / 6.
     std::vector<Vec3>& g = state_.cg_z;
@@ -170,6 +171,53 @@ void SimObject::UpdateDerived() {
   const double rate = std::sqrt(omega2) + lambda_c;
   h_stable_ = rate > 0.0 ? 0.9 * 2.0 / rate : 1e30;
   for (int32_t i = 0; i < n; ++i) state_.cg_r[i].setZero();
+}
+
+bool SimObject::ShapeSpringsExplicit(double h) {
+  if (h == shape_checked_h_) return shape_explicit_;
+  // In the implicit step the shape springs' forces meet the system matrix M + h D + h^2 K, not M:
+  // Gershgorin on M_h^-1/2 K_shape M_h^-1/2 with M_h = M + h D_min (D_min the edge dampers at
+  // their least effective viscosity, lumped per node) must stay within half the explicit limit.
+  const Model& m = model_;
+  const int32_t n = m.num_nodes;
+  const internal::ActiveTerms terms = internal::DecideTerms(m, params_);
+  std::vector<Vec3>& acc = state_.cg_r;  // x: effective mass, y: row sum
+  for (int32_t i = 0; i < n; ++i) acc[i] = Vec3(m.mass[i], 0.0, 0.0);
+  if (terms.edges) {
+    const double c_low = DamperViscosity(params_, terms.nonlinear_damper ? params_.f_max : 0.0);
+    const double c_eff = c_low * params_.c_v / (c_low + params_.c_v);
+    for (const auto& e : m.edges) {
+      acc[e[0]].x() += h * c_eff;
+      acc[e[1]].x() += h * c_eff;
+    }
+  }
+  auto couple = [&](int32_t i, int32_t j, double k) {
+    if (m.fixed[i]) return;
+    acc[i].y() +=
+        k * (1.0 / acc[i].x() + (m.fixed[j] ? 0.0 : 1.0 / std::sqrt(acc[i].x() * acc[j].x())));
+  };
+  if (terms.area) {
+    for (size_t f = 0; f < m.faces.size(); ++f) {
+      const double kf = 1.5 * params_.area_k / std::max(m.face_min_height[f], 1e-12);
+      for (int32_t i : m.faces[f]) {
+        for (int32_t j : m.faces[f]) couple(i, j, kf);
+      }
+    }
+  }
+  if (terms.tet_volume) {
+    for (size_t t = 0; t < m.tets.size(); ++t) {
+      const double kt = (4.0 / 3.0) * params_.tet_k / std::max(m.tet_min_height[t], 1e-12);
+      for (int32_t i : m.tets[t]) {
+        for (int32_t j : m.tets[t]) couple(i, j, kt);
+      }
+    }
+  }
+  double omega2 = 0.0;
+  for (int32_t i = 0; i < n; ++i) omega2 = std::max(omega2, acc[i].y());
+  for (int32_t i = 0; i < n; ++i) acc[i].setZero();
+  shape_checked_h_ = h;
+  shape_explicit_ = h * std::sqrt(omega2) <= 0.5 * 2.0;
+  return shape_explicit_;
 }
 
 int32_t SimObject::RequiredSubsteps(double dt) const {
@@ -287,9 +335,13 @@ StepResult SimObject::Step(double dt) {
     substeps = std::max(static_cast<int32_t>(params_.implicit_substeps),
                         static_cast<int32_t>(std::ceil(dt / kMaxImplicitStep - 1e-9)));
     const double h = dt / substeps;
+    // The shape springs (eqs. 5-6) are soft next to the edges: within their own explicit bound
+    // they stay out of the linear system, which then holds the edges and the rank-one volume term.
+    internal::ActiveTerms implicit_terms = terms;
+    if (ShapeSpringsExplicit(h)) implicit_terms.area = implicit_terms.tet_volume = false;
     for (int32_t k = 0; k < substeps; ++k) {
       const internal::SolveStats st =
-          internal::ImplicitEulerSubstep(model_, params_, terms, state_, h, dt);
+          internal::ImplicitEulerSubstep(model_, params_, terms, implicit_terms, state_, h, dt);
       r.solver_iterations += st.iterations;
       r.solver_residual = st.residual;
     }

@@ -107,6 +107,9 @@ class SimObject {
   double time() const { return state_.time; }
   /// Explicit substeps per tick of dt that the stability bound asks for.
   int32_t RequiredSubsteps(double dt) const;
+  /// Whether the implicit integrator leaves the shape springs (eqs. 5-6) explicit at substep h
+  /// (cached per h; recomputed after parameter changes).
+  bool ShapeSpringsExplicit(double h);
 
   Diagnostics ComputeDiagnostics() const;
 
@@ -122,6 +125,8 @@ class SimObject {
   Integrator integrator_;
   State state_;
   double h_stable_ = 0.0;          // explicit stability bound on the substep [s]
+  double shape_checked_h_ = -1.0;  // substep ShapeSpringsExplicit last decided for [s]
+  bool shape_explicit_ = false;
   Vec3 placement_ = Vec3::Zero();  // sum of Translate() offsets since build or Reset [m]
   double rest_time_ = 0.0;
   bool sleeping_ = false;
