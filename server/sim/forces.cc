@@ -55,7 +55,9 @@ inline double PhiPoly(double x) {
 }
 
 RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlinear, State& s,
-                                double h, bool advance_a, bool linearise) {
+                                double h, double a_step, bool linearise) {
+  // The edge blocks of the implicit system are always written (see below); `linearise` only
+  // says whether the diagonal damping of the explicit integrator is wanted instead.
   const bool diag_damping = !linearise && p.implicit_damping > 0.5;
   if (diag_damping) std::fill(s.damp_diag.begin(), s.damp_diag.end(), 0.0);
   const double k_v = p.k_v;
@@ -63,6 +65,7 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
   const double ratio = p.voigt_ratio;
   const double c_max = DamperViscosity(p, p.f_min);
   const double c_min = DamperViscosity(p, p.f_max);
+  const double h2 = h * h;
   const size_t ne = m.edges.size();
   const int32_t* E = m.edges.data()->data();
   const double* RL = m.edge_rest_length.data();
@@ -71,12 +74,17 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
   double* F = s.f.data()->data();
   double* A = s.a.data();
   double* T = s.tension.data();
+  double* EX = s.edge_ex.data();
+  double* EY = s.edge_ey.data();
+  double* EZ = s.edge_ez.data();
+  double* AK = s.edge_axial_k.data();
+  double* AC = s.edge_axial_c.data();
+  double* AL = s.edge_lateral.data();
   alignas(64) double dxv[3][kBlock], dvv[3][kBlock], cd[kBlock], fx[kBlock], fy[kBlock], fz[kBlock],
-      ex[kBlock], ey[kBlock], ez[kBlock], len[kBlock], ldot[kBlock], a_next[kBlock], xarg[kBlock],
-      ten[kBlock];
+      c_eff[kBlock];
+  alignas(64) int32_t exact[kBlock];
   for (size_t k0 = 0; k0 < ne; k0 += kBlock) {
     const int nb = static_cast<int>(std::min<size_t>(kBlock, ne - k0));
-    // Eq. 3 with the force of the previous substep; exp() only inside (f_min, f_max).
     // Gather (scalar loads: hardware gathers are slower than this on common CPUs).
     for (int l = 0; l < nb; ++l) {
       const size_t k = k0 + l;
@@ -85,9 +93,10 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
         dxv[c][l] = X[3 * j + c] - X[3 * i + c];
         dvv[c][l] = V[3 * j + c] - V[3 * i + c];
       }
+      // Eq. 3 with the force of the previous substep; exp() only inside (f_min, f_max).
       double c_d = c_max;
       if (nonlinear) {
-        const double f_abs = std::abs(T[k0 + l]);
+        const double f_abs = std::abs(T[k]);
         c_d = f_abs <= p.f_min   ? c_max
               : f_abs >= p.f_max ? c_min
                                  : p.damper_a * std::exp(-p.damper_b * f_abs);
@@ -103,8 +112,8 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
       const double ux = dx * inv_l, uy = dy * inv_l, uz = dz * inv_l;
       const double l_dot = ux * dvv[0][l] + uy * dvv[1][l] + uz * dvv[2][l];
       const double c_d = cd[l];
-      const double c_sum = c_v + c_d;
-      const double share = c_d / c_sum;
+      const double inv_csum = 1.0 / (c_v + c_d);
+      const double share = c_d * inv_csum;
       const double rest_voigt = ratio * RL[k];
       const double a = A[k];
       // Eq. 2 (element.h ThreeElementTension).
@@ -112,49 +121,65 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
       fx[l] = tension * ux;
       fy[l] = tension * uy;
       fz[l] = tension * uz;
-      ex[l] = ux;
-      ey[l] = uy;
-      ez[l] = uz;
-      len[l] = L;
-      ldot[l] = l_dot;
-      ten[l] = tension;
-      // element.h AdvanceVoigtRatio, phi by its polynomial.
-      const double inv_den = inv_l / c_sum;
+      T[k] = tension;
+      c_eff[l] = share * c_v;
+      // The implicit system's edge blocks, written whether or not they are used: a store under a
+      // condition would keep this loop from vectorising.
+      EX[k] = ux;
+      EY[k] = uy;
+      EZ[k] = uz;
+      AK[k] = h2 * share * k_v * std::max(a, 0.0);
+      AC[k] = h * share * c_v;
+      AL[k] = h2 * std::max(tension, 0.0) * inv_l;
+      // element.h AdvanceVoigtRatio, phi by its polynomial; other lanes in the pass below.
+      const double inv_den = inv_l * inv_csum;
       const double alpha = (k_v * rest_voigt + c_d * l_dot) * inv_den;
-      const double beta = (k_v * L + c_sum * l_dot) * inv_den;
-      const double x = beta * h;
-      xarg[l] = x;
-      a_next[l] = L > 0.0 ? a + (alpha - beta * a) * h * PhiPoly(x) : a;
+      const double beta = (k_v * L + (c_v + c_d) * l_dot) * inv_den;
+      const double x = beta * a_step;
+      const bool poly = L > 0.0 && std::abs(x) < kPhiPolyLimit;
+      exact[l] = a_step > 0.0 && L > 0.0 && !poly;
+      A[k] = a_step > 0.0 && poly ? a + (alpha - beta * a) * a_step * PhiPoly(x) : a;
     }
+    // Node i's sum stays in registers over its run of edges (sorted by i; see EdgeJacobian).
+    // The implicit system's Jacobi preconditioner gets trace/3 of each edge block (linearise),
+    // the explicit integrator's implicit damping the effective viscosity (diag_damping).
+    double* Dg = linearise ? s.diag.data() : diag_damping ? s.damp_diag.data() : nullptr;
+    int32_t cur = E[2 * k0];
+    double sx = 0.0, sy = 0.0, sz = 0.0, sd = 0.0;
     for (int l = 0; l < nb; ++l) {
       const size_t k = k0 + l;
       const int32_t i = E[2 * k], j = E[2 * k + 1];
-      F[3 * i] += fx[l];
-      F[3 * i + 1] += fy[l];
-      F[3 * i + 2] += fz[l];
+      if (i != cur) {
+        F[3 * cur] += sx;
+        F[3 * cur + 1] += sy;
+        F[3 * cur + 2] += sz;
+        if (Dg != nullptr) Dg[cur] += sd;
+        cur = i;
+        sx = sy = sz = sd = 0.0;
+      }
+      sx += fx[l];
+      sy += fy[l];
+      sz += fz[l];
       F[3 * j] -= fx[l];
       F[3 * j + 1] -= fy[l];
       F[3 * j + 2] -= fz[l];
-      const double c_d = cd[l];
-      T[k] = ten[l];
-      if (diag_damping) {
-        const double c_eff = c_d / (c_v + c_d) * c_v;
-        s.damp_diag[i] += c_eff;
-        s.damp_diag[j] += c_eff;
+      if (Dg != nullptr) {
+        const double t = linearise ? (AK[k] + AC[k] + 2.0 * AL[k]) * (1.0 / 3.0) : c_eff[l];
+        sd += t;
+        Dg[j] += t;
       }
-      if (linearise) {
-        const double share = c_d / (c_v + c_d);
-        s.edge_dir[k] = Vec3(ex[l], ey[l], ez[l]);
-        s.edge_axial_k[k] = h * h * share * k_v * std::max(A[k], 0.0);
-        s.edge_axial_c[k] = h * share * c_v;
-        s.edge_lateral[k] = h * h * std::max(T[k], 0.0) / std::max(len[l], 1e-300);
-      }
-      if (advance_a) {
-        A[k] = std::abs(xarg[l]) < kPhiPolyLimit || !(len[l] > 0.0)
-                   ? a_next[l]
-                   : AdvanceVoigtRatio(k_v, c_v, c_d, A[k], len[l], ratio * RL[k], ldot[l], h);
+      if (exact[l]) {
+        const double L =
+            std::sqrt(dxv[0][l] * dxv[0][l] + dxv[1][l] * dxv[1][l] + dxv[2][l] * dxv[2][l]);
+        const double l_dot =
+            (dxv[0][l] * dvv[0][l] + dxv[1][l] * dvv[1][l] + dxv[2][l] * dvv[2][l]) / L;
+        A[k] = AdvanceVoigtRatio(k_v, c_v, cd[l], A[k], L, ratio * RL[k], l_dot, a_step);
       }
     }
+    F[3 * cur] += sx;
+    F[3 * cur + 1] += sy;
+    F[3 * cur + 2] += sz;
+    if (Dg != nullptr) Dg[cur] += sd;
   }
 }
 
@@ -346,38 +371,86 @@ RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, do
 }  // namespace
 
 void ComputeForces(const Model& m, const Parameters& p, const ActiveTerms& terms, State& s,
-                   double h, bool advance_a, const ActiveTerms& lin) {
+                   double h, double a_step, const ActiveTerms& lin, Vec3* f_explicit) {
   const int32_t n = m.num_nodes;
   const double g = terms.gravity ? p.gravity : 0.0;
   for (int32_t i = 0; i < n; ++i) {
     s.f[i] = s.f_ext[i];
     s.f[i].y() -= m.mass[i] * g;
   }
-  if (terms.edges) EdgeForces(m, p, terms.nonlinear_damper, s, h, advance_a, lin.edges);
+  if (terms.edges) EdgeForces(m, p, terms.nonlinear_damper, s, h, a_step, lin.edges);
   if (terms.global_volume) GlobalVolumeForces(m, p, s, h, lin.global_volume);
+  if (f_explicit != nullptr) {
+    // Keep the shape springs' part apart: this copy, less the total after them.
+    std::copy(s.f.begin(), s.f.end(), f_explicit);
+  }
   if (terms.area) AreaForces(m, p, s, h, lin.area);
   if (terms.tet_volume) TetForces(m, p, s, h, lin.tet_volume);
+  if (f_explicit != nullptr) {
+    for (int32_t i = 0; i < n; ++i) f_explicit[i] = s.f[i] - f_explicit[i];
+  }
 }
+
+namespace {
+
+// out += the edge blocks times p: y = (axial - lateral)(e.d) e + lateral d with d = p_i - p_j, to
+// node i and -y to node j. A plain scalar loop (little arithmetic per edge: the blocked form of the
+// force kernels was slower here). Edges are sorted by their first node, so node i's sum stays in
+// registers for its whole run of edges and only node j is read and written per edge; with Vec3
+// stores to both ends, every edge waited on the store of the one before (store forwarding).
+RHEO_SIM_KERNEL void EdgeJacobian(const Model& m, const State& s, const double* P, double* out,
+                                  bool stiffness_only) {
+  const size_t ne = m.edges.size();
+  const int32_t* E = m.edges.data()->data();
+  const double* EX = s.edge_ex.data();
+  const double* EY = s.edge_ey.data();
+  const double* EZ = s.edge_ez.data();
+  const double* AK = s.edge_axial_k.data();
+  const double* AC = s.edge_axial_c.data();
+  const double* AL = s.edge_lateral.data();
+  const double c_scale = stiffness_only ? 0.0 : 1.0;
+  int32_t cur = -1;
+  double px = 0.0, py = 0.0, pz = 0.0, sx = 0.0, sy = 0.0, sz = 0.0;
+  for (size_t k = 0; k < ne; ++k) {
+    const int32_t i = E[2 * k], j = E[2 * k + 1];
+    if (i != cur) {
+      if (cur >= 0) {
+        out[3 * cur] += sx;
+        out[3 * cur + 1] += sy;
+        out[3 * cur + 2] += sz;
+      }
+      cur = i;
+      px = P[3 * i];
+      py = P[3 * i + 1];
+      pz = P[3 * i + 2];
+      sx = sy = sz = 0.0;
+    }
+    const double dx = px - P[3 * j], dy = py - P[3 * j + 1], dz = pz - P[3 * j + 2];
+    const double ex = EX[k], ey = EY[k], ez = EZ[k];
+    const double lateral = AL[k];
+    const double g = (AK[k] + c_scale * AC[k] - lateral) * (ex * dx + ey * dy + ez * dz);
+    const double yx = g * ex + lateral * dx, yy = g * ey + lateral * dy, yz = g * ez + lateral * dz;
+    sx += yx;
+    sy += yy;
+    sz += yz;
+    out[3 * j] -= yx;
+    out[3 * j + 1] -= yy;
+    out[3 * j + 2] -= yz;
+  }
+  if (cur >= 0) {
+    out[3 * cur] += sx;
+    out[3 * cur + 1] += sy;
+    out[3 * cur + 2] += sz;
+  }
+}
+
+}  // namespace
 
 void ApplyJacobian(const Model& m, const ActiveTerms& terms, const State& s,
                    std::span<const Vec3> pv, std::span<Vec3> out, bool stiffness_only) {
   const int32_t n = m.num_nodes;
   for (int32_t i = 0; i < n; ++i) out[i].setZero();
-  if (terms.edges) {
-    const size_t ne = m.edges.size();
-    for (size_t k = 0; k < ne; ++k) {
-      const int32_t i = m.edges[k][0];
-      const int32_t j = m.edges[k][1];
-      const Vec3 d = pv[i] - pv[j];
-      const Vec3& e = s.edge_dir[k];
-      const double axial =
-          stiffness_only ? s.edge_axial_k[k] : s.edge_axial_k[k] + s.edge_axial_c[k];
-      const double ed = e.dot(d);
-      const Vec3 y = (axial - s.edge_lateral[k]) * ed * e + s.edge_lateral[k] * d;
-      out[i] += y;
-      out[j] -= y;
-    }
-  }
+  if (terms.edges) EdgeJacobian(m, s, pv.data()->data(), out.data()->data(), stiffness_only);
   if (terms.global_volume) {
     const double beta = stiffness_only ? s.global_k : s.global_k + s.global_c;
     double dot = 0.0;

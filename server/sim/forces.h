@@ -22,11 +22,15 @@ struct ActiveTerms {
 
 ActiveTerms DecideTerms(const Model& model, const Parameters& params);
 
-/// state.f = every force at (state.x, state.v); updates state.tension. With `advance_a`, advances
-/// every Voigt ratio over h holding the current l, dl/dt. For each term on in `linearise` (a subset
-/// of `terms`; all off for the explicit integrator), fills its blocks of the implicit system for h.
+/// state.f = every force at (state.x, state.v); updates state.tension. With a_step > 0, advances
+/// every Voigt ratio over a_step holding the current l, dl/dt. For each term on in `linearise` (a
+/// subset of `terms`; all off for the explicit integrator), fills its blocks of the implicit system
+/// for step h; with linearise.edges, the edges' share of the diagonal is added to state.diag (the
+/// caller sets it to the masses first). With `shape_forces` (n entries), also writes the shape
+/// springs' (eqs. 5-6) share of state.f there.
 void ComputeForces(const Model& model, const Parameters& params, const ActiveTerms& terms,
-                   State& state, double h, bool advance_a, const ActiveTerms& linearise);
+                   State& state, double h, double a_step, const ActiveTerms& linearise,
+                   Vec3* shape_forces = nullptr);
 
 /// out = (h D + h^2 K) p with D, K the positive semi-definite damping and stiffness
 /// approximations stored by ComputeForces for the terms on in `terms`; with stiffness_only, only

@@ -53,7 +53,7 @@ double Dot(std::span<const Vec3> a, std::span<const Vec3> b) {
 
 void SymplecticEulerSubstep(const Model& m, const Parameters& p, const ActiveTerms& terms, State& s,
                             double h, double tick) {
-  ComputeForces(m, p, terms, s, h, /*advance_a=*/true, /*linearise=*/ActiveTerms{});
+  ComputeForces(m, p, terms, s, h, /*a_step=*/h, /*linearise=*/ActiveTerms{});
   const int32_t n = m.num_nodes;
   if (p.implicit_damping > 0.5 && terms.edges) {
     // v += h (M + h D)^-1 f with D the diagonal of the edge damping: for a damping Laplacian,
@@ -72,31 +72,55 @@ void SymplecticEulerSubstep(const Model& m, const Parameters& p, const ActiveTer
 
 SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const ActiveTerms& terms,
                                 const ActiveTerms& jac, State& s, double h, double tick) {
-  ComputeForces(m, p, terms, s, h, /*advance_a=*/true, /*linearise=*/jac);
   const int32_t n = m.num_nodes;
-  // rhs = h f - h^2 (-K) v.
-  ApplyJacobian(m, jac, s, s.v, s.cg_q, /*stiffness_only=*/true);
-  for (int32_t i = 0; i < n; ++i) {
-    s.rhs[i] = m.fixed[i] ? Vec3::Zero() : Vec3(h * s.f[i] - s.cg_q[i]);
-  }
-  // Jacobi preconditioner from the diagonal of the system (mass + trace/3 of each block).
-  for (int32_t i = 0; i < n; ++i) s.diag[i] = m.mass[i];
-  if (jac.edges) {
-    for (size_t k = 0; k < m.edges.size(); ++k) {
-      const double t = (s.edge_axial_k[k] + s.edge_axial_c[k] + 2.0 * s.edge_lateral[k]) / 3.0;
-      s.diag[m.edges[k][0]] += t;
-      s.diag[m.edges[k][1]] += t;
+  // BDF2 needs the previous substep, taken with the same h; otherwise this substep is BDF1
+  // (backward Euler), which also starts the history.
+  const bool bdf2 = p.implicit_order > 1.5 && s.have_prev && s.prev_h == h;
+  // BDF2: x1 = (4 x0 - x_1)/3 + (2h/3) v1, v1 = (4 v0 - v_1)/3 + (2h/3) M^-1 f(x1, v1); linearised
+  // about (x0, v0) this is the backward Euler system with step hh = 2h/3 and, with u = v1 - v0,
+  // (M + hh D + hh^2 K) u = hh f + M (v0 - v_1)/3 - hh^2 K (v0 + (x0 - x_1) / (3 hh)).
+  const double hh = bdf2 ? 2.0 * h / 3.0 : h;
+  // Shape springs left explicit are extrapolated to the end of the step in BDF2
+  // (2 f(x0) - f(x_1), the SBDF2 scheme); taken at x0 alone they would make it first order and
+  // weakly damped.
+  const bool shape_explicit = (terms.area && !jac.area) || (terms.tet_volume && !jac.tet_volume);
+  for (int32_t i = 0; i < n; ++i) s.diag[i] = m.mass[i];  // the edge kernel adds its share
+  ComputeForces(m, p, terms, s, hh, /*a_step=*/h, /*linearise=*/jac,
+                shape_explicit ? s.f_shape.data() : nullptr);
+  if (shape_explicit) {
+    for (int32_t i = 0; i < n; ++i) {
+      if (bdf2 && s.have_prev_shape) s.f[i] += s.f_shape[i] - s.f_shape_prev[i];
+      s.f_shape_prev[i] = s.f_shape[i];
     }
   }
+  s.have_prev_shape = shape_explicit;
+  std::span<const Vec3> k_arg = s.v;
+  if (bdf2) {
+    for (int32_t i = 0; i < n; ++i) s.cg_p[i] = s.v[i] + (s.x[i] - s.x_prev[i]) / (3.0 * hh);
+    k_arg = s.cg_p;
+  }
+  ApplyJacobian(m, jac, s, k_arg, s.cg_q, /*stiffness_only=*/true);
+  for (int32_t i = 0; i < n; ++i) {
+    Vec3 r = hh * s.f[i] - s.cg_q[i];
+    if (bdf2) r += m.mass[i] * (s.v[i] - s.v_prev[i]) / 3.0;
+    s.rhs[i] = m.fixed[i] ? Vec3::Zero() : r;
+  }
+  // Jacobi preconditioner from the diagonal of the system (mass + trace/3 of each block; the edge
+  // kernel added the edges' share), kept as its inverse, 0 on fixed nodes (dv = 0 there).
   if (jac.global_volume) {
     const double beta = s.global_k + s.global_c;
     for (int32_t i = 0; i < n; ++i) s.diag[i] += beta * s.vol_grad[i].squaredNorm() / 3.0;
   }
+  for (int32_t i = 0; i < n; ++i) s.diag[i] = m.fixed[i] ? 0.0 : 1.0 / s.diag[i];
+  // out = A in (rows of fixed nodes zero); returns in . out.
   auto apply_a = [&](std::span<const Vec3> in, std::span<Vec3> out) {
     ApplyJacobian(m, jac, s, in, out, /*stiffness_only=*/false);
+    double dot = 0.0;
     for (int32_t i = 0; i < n; ++i) {
       out[i] = m.fixed[i] ? Vec3::Zero() : Vec3(out[i] + m.mass[i] * in[i]);
+      dot += in[i].dot(out[i]);
     }
+    return dot;
   };
   // CG, warm-started from the previous dv.
   for (int32_t i = 0; i < n; ++i) {
@@ -116,26 +140,34 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     const double tol =
         (near_rest ? std::min(p.cg_tolerance, kRestCgTolerance) : p.cg_tolerance) * rhs_norm;
     const int max_it = static_cast<int>(p.cg_max_iterations);
-    for (int32_t i = 0; i < n; ++i) s.cg_z[i] = s.cg_r[i] / s.diag[i];
-    for (int32_t i = 0; i < n; ++i) s.cg_p[i] = s.cg_z[i];
-    double rz = Dot(s.cg_r, s.cg_z);
-    double r_norm = std::sqrt(Dot(s.cg_r, s.cg_r));
+    double rz = 0.0, r2 = 0.0;
+    for (int32_t i = 0; i < n; ++i) {
+      s.cg_z[i] = s.diag[i] * s.cg_r[i];
+      s.cg_p[i] = s.cg_z[i];
+      rz += s.cg_r[i].dot(s.cg_z[i]);
+      r2 += s.cg_r[i].squaredNorm();
+    }
+    double r_norm = std::sqrt(r2);
     int it = 0;
+    // Three passes over the nodes per iteration: the product (with p.q), the updates (with r.z
+    // and r.r), the new direction.
     while (it < max_it && r_norm > tol) {
-      apply_a(s.cg_p, s.cg_q);
-      const double pq = Dot(s.cg_p, s.cg_q);
+      const double pq = apply_a(s.cg_p, s.cg_q);
       if (!(pq > 0.0)) break;
       const double alpha = rz / pq;
+      double rz_next = 0.0;
+      r2 = 0.0;
       for (int32_t i = 0; i < n; ++i) {
         s.dv[i] += alpha * s.cg_p[i];
         s.cg_r[i] -= alpha * s.cg_q[i];
-        s.cg_z[i] = s.cg_r[i] / s.diag[i];
+        s.cg_z[i] = s.diag[i] * s.cg_r[i];
+        rz_next += s.cg_r[i].dot(s.cg_z[i]);
+        r2 += s.cg_r[i].squaredNorm();
       }
-      const double rz_next = Dot(s.cg_r, s.cg_z);
       const double beta = rz_next / rz;
       rz = rz_next;
       for (int32_t i = 0; i < n; ++i) s.cg_p[i] = s.cg_z[i] + beta * s.cg_p[i];
-      r_norm = std::sqrt(Dot(s.cg_r, s.cg_r));
+      r_norm = std::sqrt(r2);
       ++it;
     }
     stats.iterations = it;
@@ -143,9 +175,18 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   } else {
     for (int32_t i = 0; i < n; ++i) s.dv[i].setZero();
   }
-  for (int32_t i = 0; i < n; ++i) s.v[i] += s.dv[i];
-  if (terms.floor) FloorProjection(m, p, s, h, tick);
-  Advect(m, s, h);
+  // History for the next substep; for BDF2 x becomes (4 x0 - x_1)/3, from which x1 = x + hh v1.
+  for (int32_t i = 0; i < n; ++i) {
+    const Vec3 x0 = s.x[i];
+    if (bdf2) s.x[i] = (4.0 * x0 - s.x_prev[i]) / 3.0;
+    s.x_prev[i] = x0;
+    s.v_prev[i] = s.v[i];
+    s.v[i] += s.dv[i];
+  }
+  s.have_prev = true;
+  s.prev_h = h;
+  if (terms.floor) FloorProjection(m, p, s, hh, tick);
+  Advect(m, s, hh);
   return stats;
 }
 

@@ -10,7 +10,7 @@ namespace {
 
 using P = Parameters;
 
-constexpr std::array<ParameterInfo, 24> kTable = {{
+constexpr std::array<ParameterInfo, 25> kTable = {{
     {"density", &P::density, 1.0, 1e5, "kg/m^3", "material density (lumped masses)"},
     {"k_v", &P::k_v, 0.0, 1e7, "N/m", "Voigt spring elasticity per edge (eq. 2)"},
     {"c_v", &P::c_v, 1e-6, 1e6, "N s/m", "Voigt damper viscosity per edge (eq. 2)"},
@@ -32,6 +32,8 @@ constexpr std::array<ParameterInfo, 24> kTable = {{
      "1 = edge damper diagonal implicit in symplectic Euler"},
     {"implicit_substeps", &P::implicit_substeps, 1.0, 1000.0, "-",
      "substeps per tick of the implicit integrator"},
+    {"implicit_order", &P::implicit_order, 1.0, 2.0, "-",
+     "1 = backward Euler, 2 = BDF2 for the implicit integrator"},
     {"cg_tolerance", &P::cg_tolerance, 1e-14, 1.0, "-", "relative CG residual to stop at"},
     {"cg_max_iterations", &P::cg_max_iterations, 1.0, 10000.0, "-", "CG iteration cap"},
     {"max_speed", &P::max_speed, 1e-3, 1e5, "m/s", "node speed treated as an explosion"},

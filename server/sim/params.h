@@ -57,6 +57,7 @@ struct Parameters {
                                   // implicitly, lifting the damping step bound [-]
   double implicit_substeps = 1;   // substeps per tick of the implicit integrator, at least one
                                   // per 5 ms of the tick [-]
+  double implicit_order = 2;      // 1: backward Euler; 2: BDF2 (second order) [-]
   double cg_tolerance = 1e-3;     // relative residual at which CG stops [-] (sim_bench cg)
   double cg_max_iterations = 60;  // [-]
   double max_speed = 100.0;       // a node faster than this is an explosion [m/s]

@@ -28,13 +28,14 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
   s.f.assign(n, Vec3::Zero());
   s.vol_grad.assign(n, Vec3::Zero());
   s.damp_diag.assign(n, 0.0);
-  s.edge_dir.assign(ne, Vec3::Zero());
+  for (auto* vec : {&s.edge_ex, &s.edge_ey, &s.edge_ez}) vec->assign(ne, 0.0);
   s.edge_axial_k.assign(ne, 0.0);
   s.edge_axial_c.assign(ne, 0.0);
   s.edge_lateral.assign(ne, 0.0);
   s.shape_coef.assign(m.faces.size() + m.tets.size(), 0.0);
   s.shape_dir.assign(3 * m.faces.size() + 4 * m.tets.size(), Vec3::Zero());
-  for (auto* vec : {&s.cg_r, &s.cg_z, &s.cg_p, &s.cg_q, &s.dv, &s.rhs})
+  for (auto* vec : {&s.cg_r, &s.cg_z, &s.cg_p, &s.cg_q, &s.dv, &s.rhs, &s.x_prev, &s.v_prev,
+                    &s.f_shape, &s.f_shape_prev})
     vec->assign(n, Vec3::Zero());
   s.diag.assign(n, 1.0);
   s.good_x = s.x;
@@ -42,6 +43,7 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
   s.good_a = s.a;
   s.good_tension = s.tension;
   s.good_time = 0.0;
+  s.have_prev = false;
 }
 
 SimObject::SimObject(Model model, const Parameters& params, Integrator integrator)
@@ -103,6 +105,7 @@ Status SimObject::SetParameters(const Parameters& params) {
 
 void SimObject::SetIntegrator(Integrator integrator) {
   integrator_ = integrator;
+  state_.have_prev = false;
   Wake();
 }
 
@@ -259,6 +262,7 @@ bool SimObject::SetNodeState(int32_t node, const Vec3& position, const Vec3& vel
   }
   state_.x[node] = position;
   state_.v[node] = velocity;
+  state_.have_prev = false;
   Wake();
   return true;
 }
@@ -266,6 +270,7 @@ bool SimObject::SetNodeState(int32_t node, const Vec3& position, const Vec3& vel
 void SimObject::Translate(const Vec3& offset) {
   for (auto& x : state_.x) x += offset;
   placement_ += offset;
+  state_.have_prev = false;
   for (auto& v : state_.v) v.setZero();
   SaveGood();
   Wake();
@@ -278,6 +283,7 @@ void SimObject::Reset() {
   for (auto& a : state_.a) a = params_.voigt_ratio;
   for (auto& t : state_.tension) t = 0.0;
   for (auto& d : state_.dv) d.setZero();
+  state_.have_prev = false;
   state_.time = 0.0;
   SaveGood();
   Wake();
@@ -300,6 +306,7 @@ void SimObject::RestoreGood() {
   std::copy(state_.good_tension.begin(), state_.good_tension.end(), state_.tension.begin());
   for (auto& d : state_.dv) d.setZero();
   for (auto& r : state_.floor_reaction) r.setZero();
+  state_.have_prev = false;
 }
 
 StepResult SimObject::Step(double dt) {
@@ -374,6 +381,7 @@ StepResult SimObject::Step(double dt) {
     if (rest_time_ >= params_.sleep_time) {
       sleeping_ = true;
       for (auto& v : state_.v) v.setZero();
+      state_.have_prev = false;
     }
   } else {
     rest_time_ = 0.0;

@@ -25,16 +25,23 @@ struct State {
   std::vector<Vec3> vol_grad;     // gradient of the enclosed volume per node (n) [m^2]
   std::vector<double> damp_diag;  // sum of the edge damping coefficients at each node (n) [N s/m]
   // Per-edge linearisation for the implicit integrator.
-  std::vector<Vec3> edge_dir;        // unit edge vectors (e)
-  std::vector<double> edge_axial_k;  // h^2 k_eff along the edge (e) [N s/m]
-  std::vector<double> edge_axial_c;  // h c_eff along the edge (e) [N s/m]
-  std::vector<double> edge_lateral;  // h^2 max(T,0)/l across the edge (e) [N s/m]
-  std::vector<double> shape_coef;    // h^2 sigma per face then per tet (k + m) [N s/m]
-  std::vector<Vec3> shape_dir;       // force directions, 3 per face then 4 per tet (3k + 4m)
-  double global_k = 0.0;             // h^2 K of the rank-one volume term [N s/m^5]
-  double global_c = 0.0;             // h C of the rank-one volume term [N s/m^5]
+  std::vector<double> edge_ex, edge_ey, edge_ez;  // unit edge vectors (e)
+  std::vector<double> edge_axial_k;               // h^2 k_eff along the edge (e) [N s/m]
+  std::vector<double> edge_axial_c;               // h c_eff along the edge (e) [N s/m]
+  std::vector<double> edge_lateral;               // h^2 max(T,0)/l across the edge (e) [N s/m]
+  std::vector<double> shape_coef;                 // h^2 sigma per face then per tet (k + m) [N s/m]
+  std::vector<Vec3> shape_dir;  // force directions, 3 per face then 4 per tet (3k + 4m)
+  double global_k = 0.0;        // h^2 K of the rank-one volume term [N s/m^5]
+  double global_c = 0.0;        // h C of the rank-one volume term [N s/m^5]
   std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, dv, rhs;  // CG vectors (n)
-  std::vector<double> diag;                           // Jacobi preconditioner (n)
+  std::vector<double> diag;  // Jacobi preconditioner (n): the diagonal, then its inverse
+
+  // History of the implicit integrator (BDF2): positions and velocities one substep back.
+  std::vector<Vec3> x_prev, v_prev;
+  bool have_prev = false;  // false after anything that breaks the history (restore, teleport)
+  double prev_h = 0.0;     // the substep that produced the current state [s]
+  std::vector<Vec3> f_shape, f_shape_prev;  // explicit shape spring forces, now and one back
+  bool have_prev_shape = false;
 
   // Last good state for recovery.
   std::vector<Vec3> good_x, good_v;
