@@ -122,8 +122,12 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     }
     return dot;
   };
-  // CG, warm-started from the previous dv.
+  // CG, warm-started from the previous dv extrapolated linearly (dv changes smoothly from one
+  // substep to the next while the object moves).
   for (int32_t i = 0; i < n; ++i) {
+    const Vec3 last = s.dv[i];
+    s.dv[i] = 2.0 * last - s.dv_prev[i];
+    s.dv_prev[i] = last;
     if (m.fixed[i] || !s.dv[i].allFinite()) s.dv[i].setZero();
   }
   apply_a(s.dv, s.cg_q);

@@ -35,7 +35,7 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
   s.shape_coef.assign(m.faces.size() + m.tets.size(), 0.0);
   s.shape_dir.assign(3 * m.faces.size() + 4 * m.tets.size(), Vec3::Zero());
   for (auto* vec : {&s.cg_r, &s.cg_z, &s.cg_p, &s.cg_q, &s.dv, &s.rhs, &s.x_prev, &s.v_prev,
-                    &s.f_shape, &s.f_shape_prev})
+                    &s.f_shape, &s.f_shape_prev, &s.dv_prev})
     vec->assign(n, Vec3::Zero());
   s.diag.assign(n, 1.0);
   s.good_x = s.x;
@@ -283,6 +283,7 @@ void SimObject::Reset() {
   for (auto& a : state_.a) a = params_.voigt_ratio;
   for (auto& t : state_.tension) t = 0.0;
   for (auto& d : state_.dv) d.setZero();
+  for (auto& d : state_.dv_prev) d.setZero();
   state_.have_prev = false;
   state_.time = 0.0;
   SaveGood();
@@ -305,6 +306,7 @@ void SimObject::RestoreGood() {
   std::copy(state_.good_a.begin(), state_.good_a.end(), state_.a.begin());
   std::copy(state_.good_tension.begin(), state_.good_tension.end(), state_.tension.begin());
   for (auto& d : state_.dv) d.setZero();
+  for (auto& d : state_.dv_prev) d.setZero();
   for (auto& r : state_.floor_reaction) r.setZero();
   state_.have_prev = false;
 }

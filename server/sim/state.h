@@ -34,6 +34,7 @@ struct State {
   double global_k = 0.0;        // h^2 K of the rank-one volume term [N s/m^5]
   double global_c = 0.0;        // h C of the rank-one volume term [N s/m^5]
   std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, dv, rhs;  // CG vectors (n)
+  std::vector<Vec3> dv_prev;                          // dv one substep back (n)
   std::vector<double> diag;  // Jacobi preconditioner (n): the diagonal, then its inverse
 
   // History of the implicit integrator (BDF2): positions and velocities one substep back.
