@@ -160,10 +160,10 @@ int Kernels(int target) {
   const double all_f = time_us([&] { internal::ComputeForces(m, p, all, s, 1e-3, 1e-3, {}); });
   const double all_l = time_us([&] { internal::ComputeForces(m, p, all, s, 1e-3, 1e-3, all); });
   std::printf("%-28s %10.1f %10.1f\n", "all terms", all_f, all_l);
-  const double jac = time_us([&] { internal::ApplyJacobian(m, all, s, s.v, s.cg_q, false); });
+  const double jac = time_us([&] { internal::ApplyJacobian(m, all, s, s.v, s.v, s.cg_q); });
   std::printf("%-28s %10.1f\n", "Jacobian product (all)", jac);
   const double jac_e = time_us([&] {
-    internal::ApplyJacobian(m, only(&internal::ActiveTerms::edges), s, s.v, s.cg_q, false);
+    internal::ApplyJacobian(m, only(&internal::ActiveTerms::edges), s, s.v, s.v, s.cg_q);
   });
   std::printf("%-28s %10.1f\n", "Jacobian product (edges)", jac_e);
   return 0;

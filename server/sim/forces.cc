@@ -5,16 +5,6 @@
 
 #include "sim/element.h"
 
-// Hot kernels are compiled for the x86-64 baseline and for x86-64-v3 (AVX2, FMA); the loader picks
-// the best one the CPU runs (GCC function multi-versioning). Off under sanitizers and elsewhere.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
-    !defined(RHEO_SIM_NO_CLONES) && !defined(__SANITIZE_ADDRESS__) &&  \
-    !defined(__SANITIZE_THREAD__)
-#define RHEO_SIM_KERNEL __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define RHEO_SIM_KERNEL
-#endif
-
 namespace rheo::sim::internal {
 
 ActiveTerms DecideTerms(const Model& model, const Parameters& p) {
@@ -393,13 +383,15 @@ void ComputeForces(const Model& m, const Parameters& p, const ActiveTerms& terms
 
 namespace {
 
-// out += the edge blocks times p: y = (axial - lateral)(e.d) e + lateral d with d = p_i - p_j, to
-// node i and -y to node j. A plain scalar loop (little arithmetic per edge: the blocked form of the
-// force kernels was slower here). Edges are sorted by their first node, so node i's sum stays in
-// registers for its whole run of edges and only node j is read and written per edge; with Vec3
-// stores to both ends, every edge waited on the store of the one before (store forwarding).
-RHEO_SIM_KERNEL void EdgeJacobian(const Model& m, const State& s, const double* P, double* out,
-                                  bool stiffness_only) {
+// out += K_e a + D_e b over the edges, K_e = (axial_k - lateral) e e^T + lateral I and
+// D_e = axial_c e e^T for d = a_i - a_j (and b_i - b_j): y to node i, -y to node j. A plain
+// scalar loop (little arithmetic per edge: the blocked form of the force kernels was slower
+// here). Edges are sorted by their first node, so node i's sum stays in registers for its whole
+// run of edges and only node j is read and written per edge; with Vec3 stores to both ends, every
+// edge waited on the store of the one before (store forwarding).
+template <bool kSame>
+void EdgeJacobianT(const Model& m, const State& s, const double* Pa, const double* Pb,
+                   double* out) {
   const size_t ne = m.edges.size();
   const int32_t* E = m.edges.data()->data();
   const double* EX = s.edge_ex.data();
@@ -408,9 +400,9 @@ RHEO_SIM_KERNEL void EdgeJacobian(const Model& m, const State& s, const double* 
   const double* AK = s.edge_axial_k.data();
   const double* AC = s.edge_axial_c.data();
   const double* AL = s.edge_lateral.data();
-  const double c_scale = stiffness_only ? 0.0 : 1.0;
   int32_t cur = -1;
-  double px = 0.0, py = 0.0, pz = 0.0, sx = 0.0, sy = 0.0, sz = 0.0;
+  double ax = 0.0, ay = 0.0, az = 0.0, bx = 0.0, by = 0.0, bz = 0.0;
+  double sx = 0.0, sy = 0.0, sz = 0.0;
   for (size_t k = 0; k < ne; ++k) {
     const int32_t i = E[2 * k], j = E[2 * k + 1];
     if (i != cur) {
@@ -420,15 +412,28 @@ RHEO_SIM_KERNEL void EdgeJacobian(const Model& m, const State& s, const double* 
         out[3 * cur + 2] += sz;
       }
       cur = i;
-      px = P[3 * i];
-      py = P[3 * i + 1];
-      pz = P[3 * i + 2];
+      ax = Pa[3 * i];
+      ay = Pa[3 * i + 1];
+      az = Pa[3 * i + 2];
+      if constexpr (!kSame) {
+        bx = Pb[3 * i];
+        by = Pb[3 * i + 1];
+        bz = Pb[3 * i + 2];
+      }
       sx = sy = sz = 0.0;
     }
-    const double dx = px - P[3 * j], dy = py - P[3 * j + 1], dz = pz - P[3 * j + 2];
     const double ex = EX[k], ey = EY[k], ez = EZ[k];
     const double lateral = AL[k];
-    const double g = (AK[k] + c_scale * AC[k] - lateral) * (ex * dx + ey * dy + ez * dz);
+    const double dx = ax - Pa[3 * j], dy = ay - Pa[3 * j + 1], dz = az - Pa[3 * j + 2];
+    const double ed = ex * dx + ey * dy + ez * dz;
+    double g;
+    if constexpr (kSame) {
+      g = (AK[k] + AC[k] - lateral) * ed;
+    } else {
+      const double eb =
+          ex * (bx - Pb[3 * j]) + ey * (by - Pb[3 * j + 1]) + ez * (bz - Pb[3 * j + 2]);
+      g = (AK[k] - lateral) * ed + AC[k] * eb;
+    }
     const double yx = g * ex + lateral * dx, yy = g * ey + lateral * dy, yz = g * ez + lateral * dz;
     sx += yx;
     sy += yy;
@@ -444,25 +449,37 @@ RHEO_SIM_KERNEL void EdgeJacobian(const Model& m, const State& s, const double* 
   }
 }
 
+RHEO_SIM_KERNEL void EdgeJacobian(const Model& m, const State& s, const double* a, const double* b,
+                                  double* out) {
+  if (a == b)
+    EdgeJacobianT<true>(m, s, a, b, out);
+  else
+    EdgeJacobianT<false>(m, s, a, b, out);
+}
+
 }  // namespace
 
 void ApplyJacobian(const Model& m, const ActiveTerms& terms, const State& s,
-                   std::span<const Vec3> pv, std::span<Vec3> out, bool stiffness_only) {
+                   std::span<const Vec3> a, std::span<const Vec3> b, std::span<Vec3> out) {
   const int32_t n = m.num_nodes;
   for (int32_t i = 0; i < n; ++i) out[i].setZero();
-  if (terms.edges) EdgeJacobian(m, s, pv.data()->data(), out.data()->data(), stiffness_only);
+  if (terms.edges) EdgeJacobian(m, s, a.data()->data(), b.data()->data(), out.data()->data());
   if (terms.global_volume) {
-    const double beta = stiffness_only ? s.global_k : s.global_k + s.global_c;
-    double dot = 0.0;
-    for (int32_t i = 0; i < n; ++i) dot += s.vol_grad[i].dot(pv[i]);
-    for (int32_t i = 0; i < n; ++i) out[i] += beta * dot * s.vol_grad[i];
+    double dot_a = 0.0, dot_b = 0.0;
+    for (int32_t i = 0; i < n; ++i) {
+      dot_a += s.vol_grad[i].dot(a[i]);
+      dot_b += s.vol_grad[i].dot(b[i]);
+    }
+    const double c = s.global_k * dot_a + s.global_c * dot_b;
+    for (int32_t i = 0; i < n; ++i) out[i] += c * s.vol_grad[i];
   }
+  // Eqs. 5-6 (Gauss-Newton blocks) have no damping part.
   if (terms.area) {
     const size_t nf = m.faces.size();
     for (size_t k = 0; k < nf; ++k) {
       const auto& fc = m.faces[k];
       const Vec3* w = &s.shape_dir[3 * k];
-      const double dot = w[0].dot(pv[fc[0]]) + w[1].dot(pv[fc[1]]) + w[2].dot(pv[fc[2]]);
+      const double dot = w[0].dot(a[fc[0]]) + w[1].dot(a[fc[1]]) + w[2].dot(a[fc[2]]);
       const double c = s.shape_coef[k] * dot;
       out[fc[0]] += c * w[0];
       out[fc[1]] += c * w[1];
@@ -477,7 +494,7 @@ void ApplyJacobian(const Model& m, const ActiveTerms& terms, const State& s,
       const auto& t = m.tets[k];
       const Vec3* w = &s.shape_dir[3 * face_off + 4 * k];
       const double dot =
-          w[0].dot(pv[t[0]]) + w[1].dot(pv[t[1]]) + w[2].dot(pv[t[2]]) + w[3].dot(pv[t[3]]);
+          w[0].dot(a[t[0]]) + w[1].dot(a[t[1]]) + w[2].dot(a[t[2]]) + w[3].dot(a[t[3]]);
       const double c = s.shape_coef[face_off + k] * dot;
       for (int q = 0; q < 4; ++q) out[t[q]] += c * w[q];
     }

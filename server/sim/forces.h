@@ -7,6 +7,16 @@
 #include "sim/params.h"
 #include "sim/state.h"
 
+// Hot loops are compiled for the x86-64 baseline and for x86-64-v3 (AVX2, FMA); the loader picks
+// the best one the CPU runs (GCC function multi-versioning). Off under sanitizers and elsewhere.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+    !defined(RHEO_SIM_NO_CLONES) && !defined(__SANITIZE_ADDRESS__) &&  \
+    !defined(__SANITIZE_THREAD__)
+#define RHEO_SIM_KERNEL __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define RHEO_SIM_KERNEL
+#endif
+
 namespace rheo::sim::internal {
 
 /// Which terms are on, decided once per parameter change so that an off term costs nothing.
@@ -32,11 +42,12 @@ void ComputeForces(const Model& model, const Parameters& params, const ActiveTer
                    State& state, double h, double a_step, const ActiveTerms& linearise,
                    Vec3* shape_forces = nullptr);
 
-/// out = (h D + h^2 K) p with D, K the positive semi-definite damping and stiffness
-/// approximations stored by ComputeForces for the terms on in `terms`; with stiffness_only, only
-/// h^2 K p.
+/// out = h^2 K a + h D b with D, K the positive semi-definite damping and stiffness
+/// approximations stored by ComputeForces for the terms on in `terms` (a = b for the system's
+/// product; apart, the right-hand side's stiffness term and the warm start's residual share one
+/// pass).
 void ApplyJacobian(const Model& model, const ActiveTerms& terms, const State& state,
-                   std::span<const Vec3> p, std::span<Vec3> out, bool stiffness_only);
+                   std::span<const Vec3> a, std::span<const Vec3> b, std::span<Vec3> out);
 
 /// Volume enclosed by the boundary faces [m^3].
 double EnclosedVolume(const Model& model, std::span<const Vec3> x);

@@ -43,6 +43,45 @@ void Advect(const Model& m, State& s, double h) {
   for (int32_t i = 0; i < n; ++i) s.x[i] += h * s.v[i];
 }
 
+// CG's passes over the nodes, on the flat arrays (3 doubles per node) so that they vectorise.
+// out = keep (out + mass in), the rows of fixed nodes zero; returns in . out.
+RHEO_SIM_KERNEL double FinishProduct(size_t n3, const double* keep, const double* mass,
+                                     const double* in, double* out) {
+  double dot = 0.0;
+#pragma omp simd reduction(+ : dot)
+  for (size_t k = 0; k < n3; ++k) {
+    const double o = keep[k] * (out[k] + mass[k] * in[k]);
+    out[k] = o;
+    dot += in[k] * o;
+  }
+  return dot;
+}
+
+// dv += alpha p, r -= alpha q, z = D^-1 r; returns r . z and r . r.
+RHEO_SIM_KERNEL void CgUpdate(size_t n3, double alpha, const double* p, const double* q,
+                              const double* inv_diag, double* dv, double* r, double* z,
+                              double* rz_out, double* r2_out) {
+  double rz = 0.0, r2 = 0.0;
+#pragma omp simd reduction(+ : rz, r2)
+  for (size_t k = 0; k < n3; ++k) {
+    dv[k] += alpha * p[k];
+    const double rk = r[k] - alpha * q[k];
+    r[k] = rk;
+    const double zk = inv_diag[k] * rk;
+    z[k] = zk;
+    rz += rk * zk;
+    r2 += rk * rk;
+  }
+  *rz_out = rz;
+  *r2_out = r2;
+}
+
+// p = z + beta p.
+RHEO_SIM_KERNEL void CgDirection(size_t n3, double beta, const double* z, double* p) {
+#pragma omp simd
+  for (size_t k = 0; k < n3; ++k) p[k] = z[k] + beta * p[k];
+}
+
 double Dot(std::span<const Vec3> a, std::span<const Vec3> b) {
   double d = 0.0;
   for (size_t i = 0; i < a.size(); ++i) d += a[i].dot(b[i]);
@@ -94,33 +133,22 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     }
   }
   s.have_prev_shape = shape_explicit;
-  std::span<const Vec3> k_arg = s.v;
-  if (bdf2) {
-    for (int32_t i = 0; i < n; ++i) s.cg_p[i] = s.v[i] + (s.x[i] - s.x_prev[i]) / (3.0 * hh);
-    k_arg = s.cg_p;
-  }
-  ApplyJacobian(m, jac, s, k_arg, s.cg_q, /*stiffness_only=*/true);
-  for (int32_t i = 0; i < n; ++i) {
-    Vec3 r = hh * s.f[i] - s.cg_q[i];
-    if (bdf2) r += m.mass[i] * (s.v[i] - s.v_prev[i]) / 3.0;
-    s.rhs[i] = m.fixed[i] ? Vec3::Zero() : r;
-  }
   // Jacobi preconditioner from the diagonal of the system (mass + trace/3 of each block; the edge
   // kernel added the edges' share), kept as its inverse, 0 on fixed nodes (dv = 0 there).
   if (jac.global_volume) {
     const double beta = s.global_k + s.global_c;
     for (int32_t i = 0; i < n; ++i) s.diag[i] += beta * s.vol_grad[i].squaredNorm() / 3.0;
   }
-  for (int32_t i = 0; i < n; ++i) s.diag[i] = m.fixed[i] ? 0.0 : 1.0 / s.diag[i];
+  for (int32_t i = 0; i < n; ++i) {
+    const double inv = m.fixed[i] ? 0.0 : 1.0 / s.diag[i];
+    for (int c = 0; c < 3; ++c) s.inv_diag3[3 * i + c] = inv;
+  }
+  const size_t n3 = 3 * static_cast<size_t>(n);
+  auto flat = [](std::vector<Vec3>& v) { return v.data()->data(); };
   // out = A in (rows of fixed nodes zero); returns in . out.
-  auto apply_a = [&](std::span<const Vec3> in, std::span<Vec3> out) {
-    ApplyJacobian(m, jac, s, in, out, /*stiffness_only=*/false);
-    double dot = 0.0;
-    for (int32_t i = 0; i < n; ++i) {
-      out[i] = m.fixed[i] ? Vec3::Zero() : Vec3(out[i] + m.mass[i] * in[i]);
-      dot += in[i].dot(out[i]);
-    }
-    return dot;
+  auto apply_a = [&](std::vector<Vec3>& in, std::vector<Vec3>& out) {
+    ApplyJacobian(m, jac, s, in, in, out);
+    return FinishProduct(n3, s.keep3.data(), s.mass3.data(), flat(in), flat(out));
   };
   // CG, warm-started from the previous dv extrapolated linearly (dv changes smoothly from one
   // substep to the next while the object moves).
@@ -130,8 +158,24 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     s.dv_prev[i] = last;
     if (m.fixed[i] || !s.dv[i].allFinite()) s.dv[i].setZero();
   }
-  apply_a(s.dv, s.cg_q);
-  for (int32_t i = 0; i < n; ++i) s.cg_r[i] = s.rhs[i] - s.cg_q[i];
+  // The system is A u = b - hh^2 K k with A = M + hh D + hh^2 K, b = hh f (+ M (v0 - v_1)/3 in
+  // BDF2) and k = v0 (+ (x0 - x_1)/(3 hh) in BDF2). The residual of the warm start u0 then is
+  // b - M u0 - hh^2 K (k + u0) - hh D u0: one Jacobian pass for both products.
+  for (int32_t i = 0; i < n; ++i) {
+    Vec3 k = s.v[i];
+    Vec3 b = hh * s.f[i];
+    if (bdf2) {
+      k += (s.x[i] - s.x_prev[i]) / (3.0 * hh);
+      b += m.mass[i] * (s.v[i] - s.v_prev[i]) / 3.0;
+    }
+    s.cg_p[i] = k + s.dv[i];
+    s.rhs[i] = m.fixed[i] ? Vec3::Zero() : b;
+  }
+  ApplyJacobian(m, jac, s, s.cg_p, s.dv, s.cg_q);
+  for (int32_t i = 0; i < n; ++i) {
+    s.cg_r[i] = m.fixed[i] ? Vec3::Zero() : Vec3(s.rhs[i] - m.mass[i] * s.dv[i] - s.cg_q[i]);
+  }
+  // The relative tolerance is taken against |b|, the impulse of the forces over the step.
   const double rhs_norm = std::sqrt(Dot(s.rhs, s.rhs));
   SolveStats stats;
   if (rhs_norm > 0.0) {
@@ -145,11 +189,16 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
         (near_rest ? std::min(p.cg_tolerance, kRestCgTolerance) : p.cg_tolerance) * rhs_norm;
     const int max_it = static_cast<int>(p.cg_max_iterations);
     double rz = 0.0, r2 = 0.0;
-    for (int32_t i = 0; i < n; ++i) {
-      s.cg_z[i] = s.diag[i] * s.cg_r[i];
-      s.cg_p[i] = s.cg_z[i];
-      rz += s.cg_r[i].dot(s.cg_z[i]);
-      r2 += s.cg_r[i].squaredNorm();
+    {
+      const double* r = flat(s.cg_r);
+      double* z = flat(s.cg_z);
+      double* pd = flat(s.cg_p);
+      for (size_t k = 0; k < n3; ++k) {
+        z[k] = s.inv_diag3[k] * r[k];
+        pd[k] = z[k];
+        rz += r[k] * z[k];
+        r2 += r[k] * r[k];
+      }
     }
     double r_norm = std::sqrt(r2);
     int it = 0;
@@ -160,17 +209,11 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
       if (!(pq > 0.0)) break;
       const double alpha = rz / pq;
       double rz_next = 0.0;
-      r2 = 0.0;
-      for (int32_t i = 0; i < n; ++i) {
-        s.dv[i] += alpha * s.cg_p[i];
-        s.cg_r[i] -= alpha * s.cg_q[i];
-        s.cg_z[i] = s.diag[i] * s.cg_r[i];
-        rz_next += s.cg_r[i].dot(s.cg_z[i]);
-        r2 += s.cg_r[i].squaredNorm();
-      }
+      CgUpdate(n3, alpha, flat(s.cg_p), flat(s.cg_q), s.inv_diag3.data(), flat(s.dv), flat(s.cg_r),
+               flat(s.cg_z), &rz_next, &r2);
       const double beta = rz_next / rz;
       rz = rz_next;
-      for (int32_t i = 0; i < n; ++i) s.cg_p[i] = s.cg_z[i] + beta * s.cg_p[i];
+      CgDirection(n3, beta, flat(s.cg_z), flat(s.cg_p));
       r_norm = std::sqrt(r2);
       ++it;
     }

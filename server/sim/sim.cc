@@ -38,6 +38,7 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
                     &s.f_shape, &s.f_shape_prev, &s.dv_prev})
     vec->assign(n, Vec3::Zero());
   s.diag.assign(n, 1.0);
+  for (auto* vec : {&s.inv_diag3, &s.mass3, &s.keep3}) vec->assign(3 * n, 0.0);
   s.good_x = s.x;
   s.good_v = s.v;
   s.good_a = s.a;
@@ -114,6 +115,12 @@ void SimObject::UpdateDerived() {
   const Model& m = model_;
   const int32_t n = m.num_nodes;
   const internal::ActiveTerms terms = internal::DecideTerms(m, params_);
+  for (int32_t i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      state_.mass3[3 * i + c] = m.mass[i];
+      state_.keep3[3 * i + c] = m.fixed[i] ? 0.0 : 1.0;
+    }
+  }
   // Symmetrically scaled Gershgorin bound on M^-1/2 K M^-1/2 (x) and M^-1/2 D M^-1/2 (y): a pair
   // (i, j) with coupling k adds k (1/m_i + 1/sqrt(m_i m_j)) to row i.
   std::vector<Vec3>& acc = state_.cg_r;

@@ -35,7 +35,10 @@ struct State {
   double global_c = 0.0;        // h C of the rank-one volume term [N s/m^5]
   std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, dv, rhs;  // CG vectors (n)
   std::vector<Vec3> dv_prev;                          // dv one substep back (n)
-  std::vector<double> diag;  // Jacobi preconditioner (n): the diagonal, then its inverse
+  std::vector<double> diag;       // diagonal of the implicit system, for its preconditioner (n)
+  std::vector<double> inv_diag3;  // its inverse, 0 on fixed nodes, per coordinate (3n)
+  std::vector<double> mass3;      // node masses per coordinate (3n) [kg]
+  std::vector<double> keep3;      // 1 per coordinate of a free node, 0 of a fixed one (3n)
 
   // History of the implicit integrator (BDF2): positions and velocities one substep back.
   std::vector<Vec3> x_prev, v_prev;
