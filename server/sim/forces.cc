@@ -288,7 +288,11 @@ RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, do
   const double* V0 = m.tet_rest_volume.data();
   const double* X = s.x.data()->data();
   double* F = s.f.data()->data();
-  alignas(64) double dv[9][kBlock], w[12][kBlock], mag3[kBlock], gsum[kBlock];
+  // The element arithmetic is in single precision (twice the lanes): each tet's edge vectors are
+  // formed in double first, so only their relative rounding (1e-7) enters the force, far below
+  // the model's own error; forces are added to the nodes in double.
+  using R = float;
+  alignas(64) R dv[9][kBlock], w[12][kBlock], mag3[kBlock], gsum[kBlock];
   for (size_t k0 = 0; k0 < nt; k0 += kBlock) {
     const int nb = static_cast<int>(std::min<size_t>(kBlock, nt - k0));
     for (int l = 0; l < nb; ++l) {
@@ -296,22 +300,22 @@ RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, do
       const int32_t i0 = Tt[4 * k], i1 = Tt[4 * k + 1], i2 = Tt[4 * k + 2], i3 = Tt[4 * k + 3];
       for (int c = 0; c < 3; ++c) {
         const double x0 = X[3 * i0 + c];
-        dv[c][l] = X[3 * i1 + c] - x0;
-        dv[3 + c][l] = X[3 * i2 + c] - x0;
-        dv[6 + c][l] = X[3 * i3 + c] - x0;
+        dv[c][l] = static_cast<R>(X[3 * i1 + c] - x0);
+        dv[3 + c][l] = static_cast<R>(X[3 * i2 + c] - x0);
+        dv[6 + c][l] = static_cast<R>(X[3 * i3 + c] - x0);
       }
     }
 #pragma omp simd
     for (int l = 0; l < nb; ++l) {
       const size_t k = k0 + l;
-      double d1[3], d2[3], d3[3];
+      R d1[3], d2[3], d3[3];
       for (int c = 0; c < 3; ++c) {
         d1[c] = dv[c][l];
         d2[c] = dv[3 + c][l];
         d3[c] = dv[6 + c][l];
       }
       // 6 x the gradients of the signed volume at each node.
-      double g[4][3];
+      R g[4][3];
       g[1][0] = d2[1] * d3[2] - d2[2] * d3[1];
       g[1][1] = d2[2] * d3[0] - d2[0] * d3[2];
       g[1][2] = d2[0] * d3[1] - d2[1] * d3[0];
@@ -322,22 +326,22 @@ RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, do
       g[3][1] = d1[2] * d2[0] - d1[0] * d2[2];
       g[3][2] = d1[0] * d2[1] - d1[1] * d2[0];
       for (int c = 0; c < 3; ++c) g[0][c] = -(g[1][c] + g[2][c] + g[3][c]);
-      const double vol = (d1[0] * g[1][0] + d1[1] * g[1][1] + d1[2] * g[1][2]) * kSixth;
-      double u[4][3];
-      double gs = 0.0;
+      const R vol = (d1[0] * g[1][0] + d1[1] * g[1][1] + d1[2] * g[1][2]) * R(kSixth);
+      R u[4][3];
+      R gs = 0.0f;
       for (int q = 0; q < 4; ++q) {
-        const double gn = std::sqrt(g[q][0] * g[q][0] + g[q][1] * g[q][1] + g[q][2] * g[q][2]);
+        const R gn = std::sqrt(g[q][0] * g[q][0] + g[q][1] * g[q][1] + g[q][2] * g[q][2]);
         gs += gn;
-        const double inv = gn > 1e-300 ? 1.0 / gn : 0.0;
+        const R inv = gn > R(1e-30) ? R(1) / gn : R(0);
         for (int c = 0; c < 3; ++c) u[q][c] = g[q][c] * inv;
       }
       // w_q = u_q - (usum - u_q) / 3 = (4 u_q - usum) / 3; w[] holds 3 w_q.
       for (int c = 0; c < 3; ++c) {
-        const double usum = u[0][c] + u[1][c] + u[2][c] + u[3][c];
-        for (int q = 0; q < 4; ++q) w[3 * q + c][l] = 4.0 * u[q][c] - usum;
+        const R usum = u[0][c] + u[1][c] + u[2][c] + u[3][c];
+        for (int q = 0; q < 4; ++q) w[3 * q + c][l] = R(4) * u[q][c] - usum;
       }
-      const double v0 = V0[k];
-      mag3[l] = v0 > 0.0 ? -kk * (vol - v0) / v0 * kThird : 0.0;
+      const R v0 = static_cast<R>(V0[k]);
+      mag3[l] = v0 > R(0) ? R(-kk * kThird) * (vol - v0) / v0 : R(0);
       gsum[l] = gs;
     }
     for (int l = 0; l < nb; ++l) {
@@ -345,12 +349,12 @@ RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, do
       if (!(V0[k] > 0.0)) continue;
       for (int q = 0; q < 4; ++q) {
         const int32_t node = Tt[4 * k + q];
-        for (int c = 0; c < 3; ++c) F[3 * node + c] += mag3[l] * w[3 * q + c][l];
+        for (int c = 0; c < 3; ++c) F[3 * node + c] += double(mag3[l]) * double(w[3 * q + c][l]);
       }
       if (linearise) {
         for (int q = 0; q < 4; ++q) {
           s.shape_dir[3 * face_off + 4 * k + q] =
-              kThird * Vec3(w[3 * q][l], w[3 * q + 1][l], w[3 * q + 2][l]);
+              kThird * Vec3(w[3 * q][l], w[3 * q + 1][l], w[3 * q + 2][l]).cast<double>();
         }
         s.shape_coef[face_off + k] = h * h * kk / V0[k] * (gsum[l] * kSixth / 4.0) / (4.0 / 3.0);
       }
@@ -390,8 +394,8 @@ namespace {
 // run of edges and only node j is read and written per edge; with Vec3 stores to both ends, every
 // edge waited on the store of the one before (store forwarding).
 template <bool kSame>
-void EdgeJacobianT(const Model& m, const State& s, const double* Pa, const double* Pb,
-                   double* out) {
+[[gnu::always_inline]] inline void EdgeJacobianT(const Model& m, const State& s, const double* Pa,
+                                                 const double* Pb, double* out) {
   const size_t ne = m.edges.size();
   const int32_t* E = m.edges.data()->data();
   const double* EX = s.edge_ex.data();

@@ -76,6 +76,22 @@ RHEO_SIM_KERNEL void CgUpdate(size_t n3, double alpha, const double* p, const do
   *r2_out = r2;
 }
 
+// z = p = D^-1 r; returns r . z and r . r.
+RHEO_SIM_KERNEL void CgStart(size_t n3, const double* r, const double* inv_diag, double* z,
+                             double* p, double* rz_out, double* r2_out) {
+  double rz = 0.0, r2 = 0.0;
+#pragma omp simd reduction(+ : rz, r2)
+  for (size_t k = 0; k < n3; ++k) {
+    const double zk = inv_diag[k] * r[k];
+    z[k] = zk;
+    p[k] = zk;
+    rz += r[k] * zk;
+    r2 += r[k] * r[k];
+  }
+  *rz_out = rz;
+  *r2_out = r2;
+}
+
 // p = z + beta p.
 RHEO_SIM_KERNEL void CgDirection(size_t n3, double beta, const double* z, double* p) {
 #pragma omp simd
@@ -189,17 +205,7 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
         (near_rest ? std::min(p.cg_tolerance, kRestCgTolerance) : p.cg_tolerance) * rhs_norm;
     const int max_it = static_cast<int>(p.cg_max_iterations);
     double rz = 0.0, r2 = 0.0;
-    {
-      const double* r = flat(s.cg_r);
-      double* z = flat(s.cg_z);
-      double* pd = flat(s.cg_p);
-      for (size_t k = 0; k < n3; ++k) {
-        z[k] = s.inv_diag3[k] * r[k];
-        pd[k] = z[k];
-        rz += r[k] * z[k];
-        r2 += r[k] * r[k];
-      }
-    }
+    CgStart(n3, flat(s.cg_r), s.inv_diag3.data(), flat(s.cg_z), flat(s.cg_p), &rz, &r2);
     double r_norm = std::sqrt(r2);
     int it = 0;
     // Three passes over the nodes per iteration: the product (with p.q), the updates (with r.z
