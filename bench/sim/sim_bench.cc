@@ -96,7 +96,11 @@ int Speed(int max_tets) {
       const int ticks = target >= 100000 ? 15 : target >= 20000 ? 40 : 200;
       for (int k = 0; k < 5; ++k) s.Step(1e-3);
       if (method.integrator == Integrator::kImplicitEuler)
-        std::printf("# shape springs explicit at 1 ms: %d\n", s.ShapeSpringsExplicit(1e-3));
+        std::printf("# shape springs at 1 ms: %s (%d tets implicit)\n",
+                    s.ShapeSpringsTreatment(1e-3) == ShapeTreatment::kExplicit ? "explicit"
+                    : s.ShapeSpringsTreatment(1e-3) == ShapeTreatment::kSplit  ? "split"
+                                                                               : "implicit",
+                    s.shape_implicit_tets());
       std::vector<double> us;
       int64_t sub = 0, it = 0;
       for (int k = 0; k < ticks; ++k) {

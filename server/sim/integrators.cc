@@ -138,7 +138,8 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   // Shape springs left explicit are extrapolated to the end of the step in BDF2
   // (2 f(x0) - f(x_1), the SBDF2 scheme); taken at x0 alone they would make it first order and
   // weakly damped.
-  const bool shape_explicit = (terms.area && !jac.area) || (terms.tet_volume && !jac.tet_volume);
+  const bool shape_explicit =
+      (terms.area && !jac.area) || (terms.tet_volume && (!jac.tet_volume || s.tet_split));
   for (int32_t i = 0; i < n; ++i) s.diag[i] = m.mass[i];  // the edge kernel adds its share
   ComputeForces(m, p, terms, s, hh, /*a_step=*/h, /*linearise=*/jac,
                 shape_explicit ? s.f_shape.data() : nullptr);
@@ -200,7 +201,7 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     // sleep_speed (warm-started, the tighter solve costs about one iteration at rest).
     double v_max2 = 0.0;
     for (int32_t i = 0; i < n; ++i) v_max2 = std::max(v_max2, s.v[i].squaredNorm());
-    const bool near_rest = p.sleep_time > 0.0 && v_max2 < 1e4 * p.sleep_speed * p.sleep_speed;
+    const bool near_rest = p.sleep_time > 0.0 && v_max2 < 100.0 * p.sleep_speed * p.sleep_speed;
     const double tol =
         (near_rest ? std::min(p.cg_tolerance, kRestCgTolerance) : p.cg_tolerance) * rhs_norm;
     const int max_it = static_cast<int>(p.cg_max_iterations);

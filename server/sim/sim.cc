@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "sim/element.h"
 #include "sim/forces.h"
@@ -32,8 +33,13 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
   s.edge_axial_k.assign(ne, 0.0);
   s.edge_axial_c.assign(ne, 0.0);
   s.edge_lateral.assign(ne, 0.0);
-  s.shape_coef.assign(m.faces.size() + m.tets.size(), 0.0);
-  s.shape_dir.assign(3 * m.faces.size() + 4 * m.tets.size(), Vec3::Zero());
+  s.shape_coef.assign(m.faces.size(), 0.0);
+  s.shape_dir.assign(3 * m.faces.size(), Vec3::Zero());
+  s.tet_w.assign(12 * m.tets.size(), 0.0f);
+  s.tet_coef.assign(m.tets.size(), 0.0);
+  s.tet_implicit.assign(m.tets.size(), 0);
+  s.tet_stiffness.assign(m.tets.size(), 0.0);
+  s.f_tet_implicit.assign(n, Vec3::Zero());
   for (auto* vec : {&s.cg_r, &s.cg_z, &s.cg_p, &s.cg_q, &s.dv, &s.rhs, &s.x_prev, &s.v_prev,
                     &s.f_shape, &s.f_shape_prev, &s.dv_prev})
     vec->assign(n, Vec3::Zero());
@@ -183,13 +189,17 @@ void SimObject::UpdateDerived() {
   for (int32_t i = 0; i < n; ++i) state_.cg_r[i].setZero();
 }
 
-bool SimObject::ShapeSpringsExplicit(double h) {
-  if (h == shape_checked_h_) return shape_explicit_;
+ShapeTreatment SimObject::ShapeSpringsTreatment(double h) {
+  if (h == shape_checked_h_) return shape_treatment_;
   // In the implicit step the shape springs' forces meet the system matrix M + h D + h^2 K, not M:
   // Gershgorin on M_h^-1/2 K_shape M_h^-1/2 with M_h = M + h D_min (D_min the edge dampers at
-  // their least effective viscosity, lumped per node) must stay within half the explicit limit.
+  // their least effective viscosity, lumped per node) must stay within half the explicit limit,
+  // h^2 omega^2 <= 1. When all of them together do not, the stiffest tets (small heights; a few
+  // per cent on sketched meshes) join the linear system and the rest stay explicit: the largest
+  // stiffness threshold that keeps the bound is found by bisection over the sorted tets.
   const Model& m = model_;
   const int32_t n = m.num_nodes;
+  const size_t nt = m.tets.size();
   const internal::ActiveTerms terms = internal::DecideTerms(m, params_);
   std::vector<Vec3>& acc = state_.cg_r;  // x: effective mass, y: row sum
   for (int32_t i = 0; i < n; ++i) acc[i] = Vec3(m.mass[i], 0.0, 0.0);
@@ -206,28 +216,61 @@ bool SimObject::ShapeSpringsExplicit(double h) {
     acc[i].y() +=
         k * (1.0 / acc[i].x() + (m.fixed[j] ? 0.0 : 1.0 / std::sqrt(acc[i].x() * acc[j].x())));
   };
-  if (terms.area) {
-    for (size_t f = 0; f < m.faces.size(); ++f) {
-      const double kf = 1.5 * params_.area_k / std::max(m.face_min_height[f], 1e-12);
-      for (int32_t i : m.faces[f]) {
-        for (int32_t j : m.faces[f]) couple(i, j, kf);
+  auto tet_k = [&](size_t t) {
+    return (4.0 / 3.0) * params_.tet_k / std::max(m.tet_min_height[t], 1e-12);
+  };
+  // h^2 omega^2 with the faces and the tets stiffer than nothing above k_max.
+  auto bound = [&](double k_max) {
+    for (int32_t i = 0; i < n; ++i) acc[i].y() = 0.0;
+    if (terms.area) {
+      for (size_t f = 0; f < m.faces.size(); ++f) {
+        const double kf = 1.5 * params_.area_k / std::max(m.face_min_height[f], 1e-12);
+        for (int32_t i : m.faces[f]) {
+          for (int32_t j : m.faces[f]) couple(i, j, kf);
+        }
       }
     }
-  }
-  if (terms.tet_volume) {
-    for (size_t t = 0; t < m.tets.size(); ++t) {
-      const double kt = (4.0 / 3.0) * params_.tet_k / std::max(m.tet_min_height[t], 1e-12);
-      for (int32_t i : m.tets[t]) {
-        for (int32_t j : m.tets[t]) couple(i, j, kt);
+    if (terms.tet_volume) {
+      for (size_t t = 0; t < nt; ++t) {
+        const double kt = tet_k(t);
+        if (kt > k_max) continue;
+        for (int32_t i : m.tets[t]) {
+          for (int32_t j : m.tets[t]) couple(i, j, kt);
+        }
       }
     }
+    double omega2 = 0.0;
+    for (int32_t i = 0; i < n; ++i) omega2 = std::max(omega2, acc[i].y());
+    return h * h * omega2;
+  };
+  ShapeTreatment result = ShapeTreatment::kExplicit;
+  int32_t implicit_tets = 0;
+  if (bound(std::numeric_limits<double>::infinity()) > 1.0) {
+    if (!terms.tet_volume || bound(-1.0) > 1.0) {
+      result = ShapeTreatment::kImplicit;
+      implicit_tets = static_cast<int32_t>(nt);
+    } else {
+      std::vector<double>& sorted = state_.tet_stiffness;
+      for (size_t t = 0; t < nt; ++t) sorted[t] = tet_k(t);
+      std::sort(sorted.begin(), sorted.end());
+      size_t lo = 0, hi = nt;  // bound holds with the first lo tets explicit, not with hi
+      while (hi - lo > 1) {
+        const size_t mid = (lo + hi) / 2;
+        (bound(sorted[mid - 1]) <= 1.0 ? lo : hi) = mid;
+      }
+      const double k_max = lo > 0 ? sorted[lo - 1] : -1.0;
+      for (size_t t = 0; t < nt; ++t) {
+        state_.tet_implicit[t] = tet_k(t) > k_max ? 1 : 0;
+        implicit_tets += state_.tet_implicit[t];
+      }
+      result = ShapeTreatment::kSplit;
+    }
   }
-  double omega2 = 0.0;
-  for (int32_t i = 0; i < n; ++i) omega2 = std::max(omega2, acc[i].y());
   for (int32_t i = 0; i < n; ++i) acc[i].setZero();
   shape_checked_h_ = h;
-  shape_explicit_ = h * std::sqrt(omega2) <= 0.5 * 2.0;
-  return shape_explicit_;
+  shape_treatment_ = result;
+  shape_implicit_tets_ = implicit_tets;
+  return result;
 }
 
 int32_t SimObject::RequiredSubsteps(double dt) const {
@@ -352,9 +395,13 @@ StepResult SimObject::Step(double dt) {
                         static_cast<int32_t>(std::ceil(dt / kMaxImplicitStep - 1e-9)));
     const double h = dt / substeps;
     // The shape springs (eqs. 5-6) are soft next to the edges: within their own explicit bound
-    // they stay out of the linear system, which then holds the edges and the rank-one volume term.
+    // they stay out of the linear system, which then holds the edges and the rank-one volume term
+    // (and, split, the stiffest tets).
     internal::ActiveTerms implicit_terms = terms;
-    if (ShapeSpringsExplicit(h)) implicit_terms.area = implicit_terms.tet_volume = false;
+    const ShapeTreatment shape = ShapeSpringsTreatment(h);
+    state_.tet_split = shape == ShapeTreatment::kSplit;
+    if (shape != ShapeTreatment::kImplicit) implicit_terms.area = false;
+    if (shape == ShapeTreatment::kExplicit) implicit_terms.tet_volume = false;
     for (int32_t k = 0; k < substeps; ++k) {
       const internal::SolveStats st =
           internal::ImplicitEulerSubstep(model_, params_, terms, implicit_terms, state_, h, dt);

@@ -60,6 +60,10 @@ struct Diagnostics {
   bool finite = true;
 };
 
+/// The implicit integrator's treatment of the shape springs (eqs. 5-6): all explicit, the
+/// stiffest tets in the linear system and the rest explicit, or all in the linear system.
+enum class ShapeTreatment { kExplicit, kSplit, kImplicit };
+
 class SimObject {
  public:
   /// Builds model and state from a mesh (allocates). Fails on a bad mesh or parameters.
@@ -107,9 +111,10 @@ class SimObject {
   double time() const { return state_.time; }
   /// Explicit substeps per tick of dt that the stability bound asks for.
   int32_t RequiredSubsteps(double dt) const;
-  /// Whether the implicit integrator leaves the shape springs (eqs. 5-6) explicit at substep h
-  /// (cached per h; recomputed after parameter changes).
-  bool ShapeSpringsExplicit(double h);
+  /// How the implicit integrator treats the shape springs (eqs. 5-6) at substep h (cached per h;
+  /// recomputed after parameter changes); with kSplit, shape_implicit_tets() are implicit.
+  ShapeTreatment ShapeSpringsTreatment(double h);
+  int32_t shape_implicit_tets() const { return shape_implicit_tets_; }
 
   Diagnostics ComputeDiagnostics() const;
 
@@ -126,7 +131,8 @@ class SimObject {
   State state_;
   double h_stable_ = 0.0;          // explicit stability bound on the substep [s]
   double shape_checked_h_ = -1.0;  // substep ShapeSpringsExplicit last decided for [s]
-  bool shape_explicit_ = false;
+  ShapeTreatment shape_treatment_ = ShapeTreatment::kImplicit;
+  int32_t shape_implicit_tets_ = 0;
   Vec3 placement_ = Vec3::Zero();  // sum of Translate() offsets since build or Reset [m]
   double rest_time_ = 0.0;
   bool sleeping_ = false;

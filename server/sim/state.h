@@ -29,10 +29,17 @@ struct State {
   std::vector<double> edge_axial_k;               // h^2 k_eff along the edge (e) [N s/m]
   std::vector<double> edge_axial_c;               // h c_eff along the edge (e) [N s/m]
   std::vector<double> edge_lateral;               // h^2 max(T,0)/l across the edge (e) [N s/m]
-  std::vector<double> shape_coef;                 // h^2 sigma per face then per tet (k + m) [N s/m]
-  std::vector<Vec3> shape_dir;  // force directions, 3 per face then 4 per tet (3k + 4m)
-  double global_k = 0.0;        // h^2 K of the rank-one volume term [N s/m^5]
-  double global_c = 0.0;        // h C of the rank-one volume term [N s/m^5]
+  std::vector<double> shape_coef;                 // h^2 sigma per face (k) [N s/m]
+  std::vector<Vec3> shape_dir;                    // force directions, 3 per face (3k)
+  std::vector<float> tet_w;      // the same per tet, 12 in a row: [12 tet + 3 q + c] (12m)
+  std::vector<double> tet_coef;  // h^2 sigma per tet (m) [N s/m]
+  // Per-tet split of the shape springs between the linear system and the explicit forces.
+  bool tet_split = false;                             // tet_implicit decides; else all tets alike
+  std::vector<uint8_t> tet_implicit;                  // 1 = in the linear system (m)
+  std::vector<double> tet_stiffness;                  // scratch for the split's bisection (m)
+  std::vector<Vec3> f_tet_implicit;                   // the implicit tets' share of f (n) [N]
+  double global_k = 0.0;                              // h^2 K of the rank-one volume term [N s/m^5]
+  double global_c = 0.0;                              // h C of the rank-one volume term [N s/m^5]
   std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, dv, rhs;  // CG vectors (n)
   std::vector<Vec3> dv_prev;                          // dv one substep back (n)
   std::vector<double> diag;       // diagonal of the implicit system, for its preconditioner (n)
