@@ -126,9 +126,10 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
       const double alpha = (k_v * rest_voigt + c_d * l_dot) * inv_den;
       const double beta = (k_v * L + (c_v + c_d) * l_dot) * inv_den;
       const double x = beta * a_step;
-      const bool poly = L > 0.0 && std::abs(x) < kPhiPolyLimit;
-      exact[l] = a_step > 0.0 && L > 0.0 && !poly;
-      A[k] = a_step > 0.0 && poly ? a + (alpha - beta * a) * a_step * PhiPoly(x) : a;
+      // Bitwise & (no short circuit): branches would keep the loop from vectorising.
+      const bool poly = (L > 0.0) & (std::abs(x) < kPhiPolyLimit);
+      exact[l] = (a_step > 0.0) & (L > 0.0) & !poly;
+      A[k] = ((a_step > 0.0) & poly) ? a + (alpha - beta * a) * a_step * PhiPoly(x) : a;
     }
     // Node i's sum stays in registers over its run of edges (sorted by i; see EdgeJacobian).
     // The implicit system's Jacobi preconditioner gets trace/3 of each edge block (linearise),
@@ -375,7 +376,6 @@ RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, do
       for (int l = 0; l < nb; ++l) {
         for (int j = 0; j < 12; ++j) TW[12 * (k0 + l) + j] = w[j][l] * R(kThird);
       }
-#pragma omp simd
       for (int l = 0; l < nb; ++l) {
         const double v0 = V0[k0 + l];
         const bool in_system = v0 > 0.0 && (!split || TI[k0 + l]);

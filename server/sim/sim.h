@@ -130,7 +130,7 @@ class SimObject {
   Integrator integrator_;
   State state_;
   double h_stable_ = 0.0;          // explicit stability bound on the substep [s]
-  double shape_checked_h_ = -1.0;  // substep ShapeSpringsExplicit last decided for [s]
+  double shape_checked_h_ = -1.0;  // substep ShapeSpringsTreatment last decided for [s]
   ShapeTreatment shape_treatment_ = ShapeTreatment::kImplicit;
   int32_t shape_implicit_tets_ = 0;
   Vec3 placement_ = Vec3::Zero();  // sum of Translate() offsets since build or Reset [m]
