@@ -140,9 +140,28 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   // weakly damped.
   const bool shape_explicit =
       (terms.area && !jac.area) || (terms.tet_volume && (!jac.tet_volume || s.tet_split));
+  // CG is warm-started from the previous dv extrapolated linearly (dv changes smoothly from one
+  // substep to the next while the object moves).
+  for (int32_t i = 0; i < n; ++i) {
+    const Vec3 last = s.dv[i];
+    s.dv[i] = 2.0 * last - s.dv_prev[i];
+    s.dv_prev[i] = last;
+    if (m.fixed[i] || !s.dv[i].allFinite()) s.dv[i].setZero();
+  }
+  // The system is A u = b - hh^2 K k with A = M + hh D + hh^2 K, b = hh f (+ M (v0 - v_1)/3 in
+  // BDF2) and k = v0 (+ (x0 - x_1)/(3 hh) in BDF2). The residual of the warm start u0 then is
+  // b - M u0 - hh^2 K (k + u0) - hh D u0: one Jacobian product, whose edge part the edge force
+  // kernel computes as it builds the blocks (a = k + u0 in cg_p, output in cg_q).
+  for (int32_t i = 0; i < n; ++i) {
+    Vec3 k = s.v[i];
+    if (bdf2) k += (s.x[i] - s.x_prev[i]) / (3.0 * hh);
+    s.cg_p[i] = k + s.dv[i];
+    s.cg_q[i].setZero();
+  }
+  JacobianPass warm{s.cg_p.data()->data(), s.dv.data()->data(), s.cg_q.data()->data()};
   for (int32_t i = 0; i < n; ++i) s.diag[i] = m.mass[i];  // the edge kernel adds its share
   ComputeForces(m, p, terms, s, hh, /*a_step=*/h, /*linearise=*/jac,
-                shape_explicit ? s.f_shape.data() : nullptr);
+                shape_explicit ? s.f_shape.data() : nullptr, &warm);
   if (shape_explicit) {
     for (int32_t i = 0; i < n; ++i) {
       if (bdf2 && s.have_prev_shape) s.f[i] += s.f_shape[i] - s.f_shape_prev[i];
@@ -167,30 +186,15 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     ApplyJacobian(m, jac, s, in, in, out);
     return FinishProduct(n3, s.keep3.data(), s.mass3.data(), flat(in), flat(out));
   };
-  // CG, warm-started from the previous dv extrapolated linearly (dv changes smoothly from one
-  // substep to the next while the object moves).
+  // The rest of the warm start's product (volume, implicit shape springs) into cg_z.
+  ActiveTerms rest = jac;
+  rest.edges = false;
+  ApplyJacobian(m, rest, s, s.cg_p, s.dv, s.cg_z);
   for (int32_t i = 0; i < n; ++i) {
-    const Vec3 last = s.dv[i];
-    s.dv[i] = 2.0 * last - s.dv_prev[i];
-    s.dv_prev[i] = last;
-    if (m.fixed[i] || !s.dv[i].allFinite()) s.dv[i].setZero();
-  }
-  // The system is A u = b - hh^2 K k with A = M + hh D + hh^2 K, b = hh f (+ M (v0 - v_1)/3 in
-  // BDF2) and k = v0 (+ (x0 - x_1)/(3 hh) in BDF2). The residual of the warm start u0 then is
-  // b - M u0 - hh^2 K (k + u0) - hh D u0: one Jacobian pass for both products.
-  for (int32_t i = 0; i < n; ++i) {
-    Vec3 k = s.v[i];
     Vec3 b = hh * s.f[i];
-    if (bdf2) {
-      k += (s.x[i] - s.x_prev[i]) / (3.0 * hh);
-      b += m.mass[i] * (s.v[i] - s.v_prev[i]) / 3.0;
-    }
-    s.cg_p[i] = k + s.dv[i];
+    if (bdf2) b += m.mass[i] * (s.v[i] - s.v_prev[i]) / 3.0;
     s.rhs[i] = m.fixed[i] ? Vec3::Zero() : b;
-  }
-  ApplyJacobian(m, jac, s, s.cg_p, s.dv, s.cg_q);
-  for (int32_t i = 0; i < n; ++i) {
-    s.cg_r[i] = m.fixed[i] ? Vec3::Zero() : Vec3(s.rhs[i] - m.mass[i] * s.dv[i] - s.cg_q[i]);
+    s.cg_r[i] = m.fixed[i] ? Vec3::Zero() : Vec3(b - m.mass[i] * s.dv[i] - s.cg_q[i] - s.cg_z[i]);
   }
   // The relative tolerance is taken against |b|, the impulse of the forces over the step.
   const double rhs_norm = std::sqrt(Dot(s.rhs, s.rhs));
