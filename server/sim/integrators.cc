@@ -98,12 +98,6 @@ RHEO_SIM_KERNEL void CgDirection(size_t n3, double beta, const double* z, double
   for (size_t k = 0; k < n3; ++k) p[k] = z[k] + beta * p[k];
 }
 
-double Dot(std::span<const Vec3> a, std::span<const Vec3> b) {
-  double d = 0.0;
-  for (size_t i = 0; i < a.size(); ++i) d += a[i].dot(b[i]);
-  return d;
-}
-
 }  // namespace
 
 void SymplecticEulerSubstep(const Model& m, const Parameters& p, const ActiveTerms& terms, State& s,
@@ -142,24 +136,24 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
       (terms.area && !jac.area) || (terms.tet_volume && (!jac.tet_volume || s.tet_split));
   // CG is warm-started from the previous dv extrapolated linearly (dv changes smoothly from one
   // substep to the next while the object moves).
-  for (int32_t i = 0; i < n; ++i) {
-    const Vec3 last = s.dv[i];
-    s.dv[i] = 2.0 * last - s.dv_prev[i];
-    s.dv_prev[i] = last;
-    if (m.fixed[i] || !s.dv[i].allFinite()) s.dv[i].setZero();
-  }
   // The system is A u = b - hh^2 K k with A = M + hh D + hh^2 K, b = hh f (+ M (v0 - v_1)/3 in
   // BDF2) and k = v0 (+ (x0 - x_1)/(3 hh) in BDF2). The residual of the warm start u0 then is
   // b - M u0 - hh^2 K (k + u0) - hh D u0: one Jacobian product, whose edge part the edge force
-  // kernel computes as it builds the blocks (a = k + u0 in cg_p, output in cg_q).
+  // kernel computes as it builds the blocks (a = k + u0 in cg_p, output in cg_q). The diagonal
+  // starts at the masses; the edge kernel adds its share.
+  const double k_scale = bdf2 ? 1.0 / (3.0 * hh) : 0.0;
   for (int32_t i = 0; i < n; ++i) {
-    Vec3 k = s.v[i];
-    if (bdf2) k += (s.x[i] - s.x_prev[i]) / (3.0 * hh);
-    s.cg_p[i] = k + s.dv[i];
+    const Vec3 last = s.dv[i];
+    Vec3 dv = 2.0 * last - s.dv_prev[i];
+    s.dv_prev[i] = last;
+    if (m.fixed[i] || !dv.allFinite()) dv.setZero();
+    s.dv[i] = dv;
+    const Vec3 k = bdf2 ? Vec3(s.v[i] + k_scale * (s.x[i] - s.x_prev[i])) : s.v[i];
+    s.cg_p[i] = k + dv;
     s.cg_q[i].setZero();
+    s.diag[i] = m.mass[i];
   }
   JacobianPass warm{s.cg_p.data()->data(), s.dv.data()->data(), s.cg_q.data()->data()};
-  for (int32_t i = 0; i < n; ++i) s.diag[i] = m.mass[i];  // the edge kernel adds its share
   ComputeForces(m, p, terms, s, hh, /*a_step=*/h, /*linearise=*/jac,
                 shape_explicit ? s.f_shape.data() : nullptr, &warm);
   if (shape_explicit) {
@@ -171,12 +165,10 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   s.have_prev_shape = shape_explicit;
   // Jacobi preconditioner from the diagonal of the system (mass + trace/3 of each block; the edge
   // kernel added the edges' share), kept as its inverse, 0 on fixed nodes (dv = 0 there).
-  if (jac.global_volume) {
-    const double beta = s.global_k + s.global_c;
-    for (int32_t i = 0; i < n; ++i) s.diag[i] += beta * s.vol_grad[i].squaredNorm() / 3.0;
-  }
+  const double beta_v = jac.global_volume ? (s.global_k + s.global_c) / 3.0 : 0.0;
   for (int32_t i = 0; i < n; ++i) {
-    const double inv = m.fixed[i] ? 0.0 : 1.0 / s.diag[i];
+    const double d = s.diag[i] + beta_v * s.vol_grad[i].squaredNorm();
+    const double inv = m.fixed[i] ? 0.0 : 1.0 / d;
     for (int c = 0; c < 3; ++c) s.inv_diag3[3 * i + c] = inv;
   }
   const size_t n3 = 3 * static_cast<size_t>(n);
@@ -190,21 +182,23 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   ActiveTerms rest = jac;
   rest.edges = false;
   ApplyJacobian(m, rest, s, s.cg_p, s.dv, s.cg_z);
+  // The relative tolerance is taken against |b|, the impulse of the forces over the step.
+  double b2 = 0.0, v_max2 = 0.0;
   for (int32_t i = 0; i < n; ++i) {
     Vec3 b = hh * s.f[i];
     if (bdf2) b += m.mass[i] * (s.v[i] - s.v_prev[i]) / 3.0;
-    s.rhs[i] = m.fixed[i] ? Vec3::Zero() : b;
+    if (m.fixed[i]) b.setZero();
+    s.rhs[i] = b;
     s.cg_r[i] = m.fixed[i] ? Vec3::Zero() : Vec3(b - m.mass[i] * s.dv[i] - s.cg_q[i] - s.cg_z[i]);
+    b2 += b.squaredNorm();
+    v_max2 = std::max(v_max2, s.v[i].squaredNorm());
   }
-  // The relative tolerance is taken against |b|, the impulse of the forces over the step.
-  const double rhs_norm = std::sqrt(Dot(s.rhs, s.rhs));
+  const double rhs_norm = std::sqrt(b2);
   SolveStats stats;
   if (rhs_norm > 0.0) {
     // Near rest the solve is tightened: there the right-hand side is mostly weight held by the
     // floor, and an error relative to it, repeated every tick, keeps light nodes jittering above
     // sleep_speed (warm-started, the tighter solve costs about one iteration at rest).
-    double v_max2 = 0.0;
-    for (int32_t i = 0; i < n; ++i) v_max2 = std::max(v_max2, s.v[i].squaredNorm());
     const bool near_rest = p.sleep_time > 0.0 && v_max2 < 100.0 * p.sleep_speed * p.sleep_speed;
     const double tol =
         (near_rest ? std::min(p.cg_tolerance, kRestCgTolerance) : p.cg_tolerance) * rhs_norm;
