@@ -81,17 +81,31 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
   for (size_t k0 = 0; k0 < ne; k0 += kBlock) {
     const int nb = static_cast<int>(std::min<size_t>(kBlock, ne - k0));
     // Gather (scalar loads: hardware gathers are slower than this on common CPUs).
+    // Node i's values are loaded once per run of edges that share it (edges are sorted by i).
+    int32_t gi = -1;
+    double xi[3] = {}, vi[3] = {}, ai[3] = {}, bi[3] = {};
     for (int l = 0; l < nb; ++l) {
       const size_t k = k0 + l;
       const int32_t i = E[2 * k], j = E[2 * k + 1];
+      if (i != gi) {
+        gi = i;
+        for (int c = 0; c < 3; ++c) {
+          xi[c] = X[3 * i + c];
+          vi[c] = V[3 * i + c];
+          if (Py != nullptr) {
+            ai[c] = Pa[3 * i + c];
+            bi[c] = Pb[3 * i + c];
+          }
+        }
+      }
       for (int c = 0; c < 3; ++c) {
-        dxv[c][l] = X[3 * j + c] - X[3 * i + c];
-        dvv[c][l] = V[3 * j + c] - V[3 * i + c];
+        dxv[c][l] = X[3 * j + c] - xi[c];
+        dvv[c][l] = V[3 * j + c] - vi[c];
       }
       if (Py != nullptr) {
         for (int c = 0; c < 3; ++c) {
-          dav[c][l] = Pa[3 * i + c] - Pa[3 * j + c];
-          dbv[c][l] = Pb[3 * i + c] - Pb[3 * j + c];
+          dav[c][l] = ai[c] - Pa[3 * j + c];
+          dbv[c][l] = bi[c] - Pb[3 * j + c];
         }
       }
       // Eq. 3 with the force of the previous substep; exp() only inside (f_min, f_max).
