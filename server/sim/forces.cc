@@ -176,19 +176,23 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
     double* Dg = linearise ? s.diag.data() : diag_damping ? s.damp_diag.data() : nullptr;
     int32_t cur = E[2 * k0];
     double sx = 0.0, sy = 0.0, sz = 0.0, sd = 0.0, yx = 0.0, yy = 0.0, yz = 0.0;
+    // Adds node cur's sums to it.
+    auto flush = [&] {
+      F[3 * cur] += sx;
+      F[3 * cur + 1] += sy;
+      F[3 * cur + 2] += sz;
+      if (Dg != nullptr) Dg[cur] += sd;
+      if (Py != nullptr) {
+        Py[3 * cur] += yx;
+        Py[3 * cur + 1] += yy;
+        Py[3 * cur + 2] += yz;
+      }
+    };
     for (int l = 0; l < nb; ++l) {
       const size_t k = k0 + l;
       const int32_t i = E[2 * k], j = E[2 * k + 1];
       if (i != cur) {
-        F[3 * cur] += sx;
-        F[3 * cur + 1] += sy;
-        F[3 * cur + 2] += sz;
-        if (Dg != nullptr) Dg[cur] += sd;
-        if (Py != nullptr) {
-          Py[3 * cur] += yx;
-          Py[3 * cur + 1] += yy;
-          Py[3 * cur + 2] += yz;
-        }
+        flush();
         cur = i;
         sx = sy = sz = sd = yx = yy = yz = 0.0;
       }
@@ -219,15 +223,7 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
         A[k] = AdvanceVoigtRatio(k_v, c_v, cd[l], A[k], L, ratio * RL[k], l_dot, a_step);
       }
     }
-    F[3 * cur] += sx;
-    F[3 * cur + 1] += sy;
-    F[3 * cur + 2] += sz;
-    if (Dg != nullptr) Dg[cur] += sd;
-    if (Py != nullptr) {
-      Py[3 * cur] += yx;
-      Py[3 * cur + 1] += yy;
-      Py[3 * cur + 2] += yz;
-    }
+    flush();
   }
 }
 

@@ -253,15 +253,24 @@ TEST(RheodScene, ObjectFallsAndStreamsTopologyOnceThenPositions) {
   for (size_t i = 1; i < got.size(); ++i) EXPECT_EQ(got[i].topology_size(), 0) << "topology once";
   ASSERT_EQ(got.back().objects_size(), 1);
   EXPECT_EQ(got.back().objects(0).positions_size(), static_cast<int>(3 * topo.vertex_count()));
-  // Gravity: the lowest point goes down (or the object already rests on the floor at y >= 0).
+  // Gravity: the object is placed with its lowest point 2 cm above the floor. It has fallen by
+  // the first frame, or it falls after it (a slow tick under the sanitizers); a frame taken at
+  // the impact can be followed by the bounce, so the last frame need not be the lowest. The floor
+  // holds it in every frame.
   auto lowest = [](const v1::ObjectState& s) {
     float m = 1e9f;
     for (int i = 1; i < s.positions_size(); i += 3) m = std::min(m, s.positions(i));
     return m;
   };
-  float y0 = lowest(got.front().objects(0)), y1 = lowest(got.back().objects(0));
-  EXPECT_LT(y1, y0);
-  EXPECT_GT(y1, -0.01f) << "the floor holds the object";
+  const float y0 = lowest(got.front().objects(0));
+  float y_min = y0;
+  for (size_t i = 0; i < got.size(); ++i) {
+    ASSERT_EQ(got[i].objects_size(), 1);
+    const float y = lowest(got[i].objects(0));
+    y_min = std::min(y_min, y);
+    EXPECT_GT(y, -0.01f) << "frame " << i << ": the floor holds the object";
+  }
+  EXPECT_TRUE(y0 < 0.019f || y_min < y0) << "first frame " << y0 << ", lowest " << y_min;
 
   grpc::ClientContext rctx;
   SetDeadline(rctx);
