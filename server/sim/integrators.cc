@@ -188,7 +188,6 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     Vec3 b = hh * s.f[i];
     if (bdf2) b += m.mass[i] * (s.v[i] - s.v_prev[i]) / 3.0;
     if (m.fixed[i]) b.setZero();
-    s.rhs[i] = b;
     s.cg_r[i] = m.fixed[i] ? Vec3::Zero() : Vec3(b - m.mass[i] * s.dv[i] - s.cg_q[i] - s.cg_z[i]);
     b2 += b.squaredNorm();
     v_max2 = std::max(v_max2, s.v[i].squaredNorm());

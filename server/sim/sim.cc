@@ -39,9 +39,10 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
   s.tet_coef.assign(m.tets.size(), 0.0);
   s.tet_implicit.assign(m.tets.size(), 0);
   s.tet_stiffness.assign(m.tets.size(), 0.0);
+  s.tet_rows.assign(4 * m.tets.size(), 0.0);
   s.f_tet_implicit.assign(n, Vec3::Zero());
-  for (auto* vec : {&s.cg_r, &s.cg_z, &s.cg_p, &s.cg_q, &s.dv, &s.rhs, &s.x_prev, &s.v_prev,
-                    &s.f_shape, &s.f_shape_prev, &s.dv_prev})
+  for (auto* vec : {&s.cg_r, &s.cg_z, &s.cg_p, &s.cg_q, &s.dv, &s.x_prev, &s.v_prev, &s.f_shape,
+                    &s.f_shape_prev, &s.dv_prev})
     vec->assign(n, Vec3::Zero());
   s.diag.assign(n, 1.0);
   for (auto* vec : {&s.inv_diag3, &s.mass3, &s.keep3}) vec->assign(3 * n, 0.0);
@@ -211,36 +212,47 @@ ShapeTreatment SimObject::ShapeSpringsTreatment(double h) {
       acc[e[1]].x() += h * c_eff;
     }
   }
-  auto couple = [&](int32_t i, int32_t j, double k) {
-    if (m.fixed[i]) return;
-    acc[i].y() +=
-        k * (1.0 / acc[i].x() + (m.fixed[j] ? 0.0 : 1.0 / std::sqrt(acc[i].x() * acc[j].x())));
+  // Row-sum contribution of a spring with stiffness k between i and j (to row i).
+  auto coupling = [&](int32_t i, int32_t j, double k) {
+    if (m.fixed[i]) return 0.0;
+    return k * (1.0 / acc[i].x() + (m.fixed[j] ? 0.0 : 1.0 / std::sqrt(acc[i].x() * acc[j].x())));
   };
   auto tet_k = [&](size_t t) {
     return (4.0 / 3.0) * params_.tet_k / std::max(m.tet_min_height[t], 1e-12);
   };
-  // h^2 omega^2 with the faces and the tets stiffer than nothing above k_max.
-  auto bound = [&](double k_max) {
-    for (int32_t i = 0; i < n; ++i) acc[i].y() = 0.0;
-    if (terms.area) {
-      for (size_t f = 0; f < m.faces.size(); ++f) {
-        const double kf = 1.5 * params_.area_k / std::max(m.face_min_height[f], 1e-12);
-        for (int32_t i : m.faces[f]) {
-          for (int32_t j : m.faces[f]) couple(i, j, kf);
-        }
+  // The faces' row sums (y), and each tet's share of its four nodes' rows (tet_rows), once; the
+  // bisection below then only adds shares (this runs on the loop thread after a parameter
+  // change, so it is kept to a few passes over the tets).
+  if (terms.area) {
+    for (size_t f = 0; f < m.faces.size(); ++f) {
+      const double kf = 1.5 * params_.area_k / std::max(m.face_min_height[f], 1e-12);
+      for (int32_t i : m.faces[f]) {
+        for (int32_t j : m.faces[f]) acc[i].y() += coupling(i, j, kf);
       }
     }
+  }
+  std::vector<double>& rows = state_.tet_rows;
+  if (terms.tet_volume) {
+    for (size_t t = 0; t < nt; ++t) {
+      const double kt = tet_k(t);
+      for (int q = 0; q < 4; ++q) {
+        double r = 0.0;
+        for (int32_t j : m.tets[t]) r += coupling(m.tets[t][q], j, kt);
+        rows[4 * t + q] = r;
+      }
+    }
+  }
+  // h^2 omega^2 with the faces and the tets no stiffer than k_max (z: the row sums).
+  auto bound = [&](double k_max) {
+    for (int32_t i = 0; i < n; ++i) acc[i].z() = acc[i].y();
     if (terms.tet_volume) {
       for (size_t t = 0; t < nt; ++t) {
-        const double kt = tet_k(t);
-        if (kt > k_max) continue;
-        for (int32_t i : m.tets[t]) {
-          for (int32_t j : m.tets[t]) couple(i, j, kt);
-        }
+        if (tet_k(t) > k_max) continue;
+        for (int q = 0; q < 4; ++q) acc[m.tets[t][q]].z() += rows[4 * t + q];
       }
     }
     double omega2 = 0.0;
-    for (int32_t i = 0; i < n; ++i) omega2 = std::max(omega2, acc[i].y());
+    for (int32_t i = 0; i < n; ++i) omega2 = std::max(omega2, acc[i].z());
     return h * h * omega2;
   };
   ShapeTreatment result = ShapeTreatment::kExplicit;

@@ -34,14 +34,15 @@ struct State {
   std::vector<float> tet_w;      // the same per tet, 12 in a row: [12 tet + 3 q + c] (12m)
   std::vector<double> tet_coef;  // h^2 sigma per tet (m) [N s/m]
   // Per-tet split of the shape springs between the linear system and the explicit forces.
-  bool tet_split = false;                             // tet_implicit decides; else all tets alike
-  std::vector<uint8_t> tet_implicit;                  // 1 = in the linear system (m)
-  std::vector<double> tet_stiffness;                  // scratch for the split's bisection (m)
-  std::vector<Vec3> f_tet_implicit;                   // the implicit tets' share of f (n) [N]
-  double global_k = 0.0;                              // h^2 K of the rank-one volume term [N s/m^5]
-  double global_c = 0.0;                              // h C of the rank-one volume term [N s/m^5]
-  std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, dv, rhs;  // CG vectors (n)
-  std::vector<Vec3> dv_prev;                          // dv one substep back (n)
+  bool tet_split = false;             // tet_implicit decides; else all tets alike
+  std::vector<uint8_t> tet_implicit;  // 1 = in the linear system (m)
+  std::vector<double> tet_stiffness;  // scratch for the split's bisection (m)
+  std::vector<double> tet_rows;       // scratch: each tet's share of its nodes' row sums (4m)
+  std::vector<Vec3> f_tet_implicit;   // the implicit tets' share of f (n) [N]
+  double global_k = 0.0;              // h^2 K of the rank-one volume term [N s/m^5]
+  double global_c = 0.0;              // h C of the rank-one volume term [N s/m^5]
+  std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, dv;  // CG vectors (n)
+  std::vector<Vec3> dv_prev;                     // dv one substep back (n)
   std::vector<double> diag;       // diagonal of the implicit system, for its preconditioner (n)
   std::vector<double> inv_diag3;  // its inverse, 0 on fixed nodes, per coordinate (3n)
   std::vector<double> mass3;      // node masses per coordinate (3n) [kg]
