@@ -44,6 +44,18 @@ inline double PhiPoly(double x) {
                         x * (1.0 / 120 - x * (1.0 / 720 - x * (1.0 / 5040 - x * (1.0 / 40320)))))));
 }
 
+// One edge block of the implicit system times the differences across the edge:
+// y = (K_e) da + (D_e) db, K_e = (axial_k - lateral) e e^T + lateral I, D_e = axial_c e e^T.
+// eb = e . db (the caller may know it equals e . da).
+inline void EdgeBlockProduct(double ex, double ey, double ez, double axial_k, double axial_c,
+                             double lateral, const double da[3], double eb, double y[3]) {
+  const double ea = ex * da[0] + ey * da[1] + ez * da[2];
+  const double g = (axial_k - lateral) * ea + axial_c * eb;
+  y[0] = g * ex + lateral * da[0];
+  y[1] = g * ey + lateral * da[1];
+  y[2] = g * ez + lateral * da[2];
+}
+
 RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlinear, State& s,
                                 double h, double a_step, bool linearise, const JacobianPass* jp) {
   // The edge blocks of the implicit system are always written (see below); `linearise` only
@@ -156,21 +168,19 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
       exact[l] = (a_step > 0.0) & (L > 0.0) & !poly;
       A[k] = ((a_step > 0.0) & poly) ? a + (alpha - beta * a) * a_step * PhiPoly(x) : a;
     }
-    // Node i's sum stays in registers over its run of edges (sorted by i; see EdgeJacobian).
     if (Py != nullptr) {
       // EdgeJacobian's product on the blocks just computed, while they are in cache.
 #pragma omp simd
       for (int l = 0; l < nb; ++l) {
         const size_t k = k0 + l;
-        const double ex = EX[k], ey = EY[k], ez = EZ[k], lateral = AL[k];
-        const double ea = ex * dav[0][l] + ey * dav[1][l] + ez * dav[2][l];
-        const double eb = ex * dbv[0][l] + ey * dbv[1][l] + ez * dbv[2][l];
-        const double g = (AK[k] - lateral) * ea + AC[k] * eb;
-        yv[0][l] = g * ex + lateral * dav[0][l];
-        yv[1][l] = g * ey + lateral * dav[1][l];
-        yv[2][l] = g * ez + lateral * dav[2][l];
+        const double da[3] = {dav[0][l], dav[1][l], dav[2][l]};
+        const double eb = EX[k] * dbv[0][l] + EY[k] * dbv[1][l] + EZ[k] * dbv[2][l];
+        double y[3];
+        EdgeBlockProduct(EX[k], EY[k], EZ[k], AK[k], AC[k], AL[k], da, eb, y);
+        for (int c = 0; c < 3; ++c) yv[c][l] = y[c];
       }
     }
+    // Node i's sum stays in registers over its run of edges (sorted by i; see EdgeJacobian).
     // The implicit system's Jacobi preconditioner gets trace/3 of each edge block (linearise),
     // the explicit integrator's implicit damping the effective viscosity (diag_damping).
     double* Dg = linearise ? s.diag.data() : diag_damping ? s.damp_diag.data() : nullptr;
@@ -403,26 +413,21 @@ RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, do
       mag3[l] = v0 > R(0) ? R(-kk * kThird) * (vol - v0) / v0 : R(0);
       gsum[l] = gs;
     }
-    for (int l = 0; l < nb; ++l) {
-      const size_t k = k0 + l;
-      if (!(V0[k] > 0.0)) continue;
-      for (int q = 0; q < 4; ++q) {
-        const int32_t node = Tt[4 * k + q];
-        for (int c = 0; c < 3; ++c) F[3 * node + c] += double(mag3[l]) * double(w[3 * q + c][l]);
-      }
-    }
-    if (split) {
-      // The implicit tets' forces also go apart, so that the caller can leave them out of the
-      // explicit (extrapolated) share.
+    // Adds the forces of the block's tets that `take` accepts to `dst`.
+    auto scatter = [&](double* dst, auto take) {
       for (int l = 0; l < nb; ++l) {
-        const size_t k = k0 + l;
-        if (!TI[k]) continue;
+        if (!take(k0 + l)) continue;
         for (int q = 0; q < 4; ++q) {
-          const int32_t node = Tt[4 * k + q];
-          for (int c = 0; c < 3; ++c) FI[3 * node + c] += double(mag3[l]) * double(w[3 * q + c][l]);
+          const int32_t node = Tt[4 * (k0 + l) + q];
+          for (int c = 0; c < 3; ++c)
+            dst[3 * node + c] += double(mag3[l]) * double(w[3 * q + c][l]);
         }
       }
-    }
+    };
+    scatter(F, [&](size_t k) { return V0[k] > 0.0; });
+    // The implicit tets' forces also go apart, so that the caller can leave them out of the
+    // explicit (extrapolated) share.
+    if (split) scatter(FI, [&](size_t k) { return TI[k] != 0; });
     if (linearise) {
       // Gauss-Newton blocks sigma w w^T (w = the force direction of each corner), kept per
       // coordinate for the vectorised product in ApplyJacobian; 0 for skipped tets.
@@ -511,24 +516,18 @@ template <bool kSame>
       sx = sy = sz = 0.0;
     }
     const double ex = EX[k], ey = EY[k], ez = EZ[k];
-    const double lateral = AL[k];
-    const double dx = ax - Pa[3 * j], dy = ay - Pa[3 * j + 1], dz = az - Pa[3 * j + 2];
-    const double ed = ex * dx + ey * dy + ez * dz;
-    double g;
-    if constexpr (kSame) {
-      g = (AK[k] + AC[k] - lateral) * ed;
-    } else {
-      const double eb =
-          ex * (bx - Pb[3 * j]) + ey * (by - Pb[3 * j + 1]) + ez * (bz - Pb[3 * j + 2]);
-      g = (AK[k] - lateral) * ed + AC[k] * eb;
-    }
-    const double yx = g * ex + lateral * dx, yy = g * ey + lateral * dy, yz = g * ez + lateral * dz;
-    sx += yx;
-    sy += yy;
-    sz += yz;
-    out[3 * j] -= yx;
-    out[3 * j + 1] -= yy;
-    out[3 * j + 2] -= yz;
+    const double da[3] = {ax - Pa[3 * j], ay - Pa[3 * j + 1], az - Pa[3 * j + 2]};
+    const double eb =
+        kSame ? ex * da[0] + ey * da[1] + ez * da[2]
+              : ex * (bx - Pb[3 * j]) + ey * (by - Pb[3 * j + 1]) + ez * (bz - Pb[3 * j + 2]);
+    double y[3];
+    EdgeBlockProduct(ex, ey, ez, AK[k], AC[k], AL[k], da, eb, y);
+    sx += y[0];
+    sy += y[1];
+    sz += y[2];
+    out[3 * j] -= y[0];
+    out[3 * j + 1] -= y[1];
+    out[3 * j + 2] -= y[2];
   }
   if (cur >= 0) {
     out[3 * cur] += sx;

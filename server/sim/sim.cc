@@ -16,6 +16,27 @@ constexpr double kMaxImplicitStep = 5e-3;
 // Steps between snapshots of the last good state (a restore goes back at most this many ticks).
 constexpr int32_t kSnapshotInterval = 8;
 
+namespace {
+
+// The symmetrically scaled Gershgorin bounds (UpdateDerived, ShapeSpringsTreatment): a pair (i, j)
+// of a spring with stiffness k adds k (1/m_i + 1/sqrt(m_i m_j)) to row i of M^-1/2 K M^-1/2;
+// nothing to the row of a fixed node, and no cross term to a fixed neighbour.
+double GershgorinShare(double m_i, double m_j, bool fixed_i, bool fixed_j, double k) {
+  if (fixed_i) return 0.0;
+  return k * (1.0 / m_i + (fixed_j ? 0.0 : 1.0 / std::sqrt(m_i * m_j)));
+}
+
+// Bounds on the stiffness of one area spring (eq. 5) and one tet spring (eq. 6) between two of
+// their nodes [N/m]: k over the element's smallest height, with the margins of their gradients.
+double FaceSpringStiffness(const Model& m, const Parameters& p, size_t f) {
+  return 1.5 * p.area_k / std::max(m.face_min_height[f], 1e-12);
+}
+double TetSpringStiffness(const Model& m, const Parameters& p, size_t t) {
+  return (4.0 / 3.0) * p.tet_k / std::max(m.tet_min_height[t], 1e-12);
+}
+
+}  // namespace
+
 void InitState(const Model& m, double voigt_ratio, State& s) {
   const size_t n = m.num_nodes;
   const size_t ne = m.edges.size();
@@ -113,7 +134,7 @@ Status SimObject::SetParameters(const Parameters& params) {
 
 void SimObject::SetIntegrator(Integrator integrator) {
   integrator_ = integrator;
-  state_.have_prev = false;
+  ForgetHistory();
   Wake();
 }
 
@@ -133,8 +154,7 @@ void SimObject::UpdateDerived() {
   std::vector<Vec3>& acc = state_.cg_r;
   for (int32_t i = 0; i < n; ++i) acc[i].setZero();
   auto couple = [&](int32_t i, int32_t j, double k, double c) {
-    if (m.fixed[i]) return;
-    const double w = 1.0 / m.mass[i] + (m.fixed[j] ? 0.0 : 1.0 / std::sqrt(m.mass[i] * m.mass[j]));
+    const double w = GershgorinShare(m.mass[i], m.mass[j], m.fixed[i], m.fixed[j], 1.0);
     acc[i].x() += k * w;
     acc[i].y() += c * w;
   };
@@ -150,7 +170,7 @@ void SimObject::UpdateDerived() {
   }
   if (terms.area) {
     for (size_t f = 0; f < m.faces.size(); ++f) {
-      const double kf = 1.5 * params_.area_k / std::max(m.face_min_height[f], 1e-12);
+      const double kf = FaceSpringStiffness(m, params_, f);
       for (int32_t i : m.faces[f]) {
         for (int32_t j : m.faces[f]) couple(i, j, kf, 0.0);
       }
@@ -158,7 +178,7 @@ void SimObject::UpdateDerived() {
   }
   if (terms.tet_volume) {
     for (size_t t = 0; t < m.tets.size(); ++t) {
-      const double kt = (4.0 / 3.0) * params_.tet_k / std::max(m.tet_min_height[t], 1e-12);
+      const double kt = TetSpringStiffness(m, params_, t);
       for (int32_t i : m.tets[t]) {
         for (int32_t j : m.tets[t]) couple(i, j, kt, 0.0);
       }
@@ -214,18 +234,15 @@ ShapeTreatment SimObject::ShapeSpringsTreatment(double h) {
   }
   // Row-sum contribution of a spring with stiffness k between i and j (to row i).
   auto coupling = [&](int32_t i, int32_t j, double k) {
-    if (m.fixed[i]) return 0.0;
-    return k * (1.0 / acc[i].x() + (m.fixed[j] ? 0.0 : 1.0 / std::sqrt(acc[i].x() * acc[j].x())));
+    return GershgorinShare(acc[i].x(), acc[j].x(), m.fixed[i], m.fixed[j], k);
   };
-  auto tet_k = [&](size_t t) {
-    return (4.0 / 3.0) * params_.tet_k / std::max(m.tet_min_height[t], 1e-12);
-  };
+  auto tet_k = [&](size_t t) { return TetSpringStiffness(m, params_, t); };
   // The faces' row sums (y), and each tet's share of its four nodes' rows (tet_rows), once; the
   // bisection below then only adds shares (this runs on the loop thread after a parameter
   // change, so it is kept to a few passes over the tets).
   if (terms.area) {
     for (size_t f = 0; f < m.faces.size(); ++f) {
-      const double kf = 1.5 * params_.area_k / std::max(m.face_min_height[f], 1e-12);
+      const double kf = FaceSpringStiffness(m, params_, f);
       for (int32_t i : m.faces[f]) {
         for (int32_t j : m.faces[f]) acc[i].y() += coupling(i, j, kf);
       }
@@ -324,7 +341,7 @@ bool SimObject::SetNodeState(int32_t node, const Vec3& position, const Vec3& vel
   }
   state_.x[node] = position;
   state_.v[node] = velocity;
-  state_.have_prev = false;
+  ForgetHistory();
   Wake();
   return true;
 }
@@ -332,7 +349,7 @@ bool SimObject::SetNodeState(int32_t node, const Vec3& position, const Vec3& vel
 void SimObject::Translate(const Vec3& offset) {
   for (auto& x : state_.x) x += offset;
   placement_ += offset;
-  state_.have_prev = false;
+  ForgetHistory();
   for (auto& v : state_.v) v.setZero();
   SaveGood();
   Wake();
@@ -344,12 +361,18 @@ void SimObject::Reset() {
   for (auto& v : state_.v) v.setZero();
   for (auto& a : state_.a) a = params_.voigt_ratio;
   for (auto& t : state_.tension) t = 0.0;
-  for (auto& d : state_.dv) d.setZero();
-  for (auto& d : state_.dv_prev) d.setZero();
-  state_.have_prev = false;
+  ForgetHistory();
   state_.time = 0.0;
   SaveGood();
   Wake();
+}
+
+void SimObject::ForgetHistory() {
+  // The implicit integrator's memory of earlier substeps (BDF2 and the CG warm start) no longer
+  // describes the state: the next substep starts afresh.
+  for (auto& d : state_.dv) d.setZero();
+  for (auto& d : state_.dv_prev) d.setZero();
+  state_.have_prev = false;
 }
 
 void SimObject::SaveGood() {
@@ -367,10 +390,8 @@ void SimObject::RestoreGood() {
   for (auto& v : state_.v) v.setZero();
   std::copy(state_.good_a.begin(), state_.good_a.end(), state_.a.begin());
   std::copy(state_.good_tension.begin(), state_.good_tension.end(), state_.tension.begin());
-  for (auto& d : state_.dv) d.setZero();
-  for (auto& d : state_.dv_prev) d.setZero();
   for (auto& r : state_.floor_reaction) r.setZero();
-  state_.have_prev = false;
+  ForgetHistory();
 }
 
 StepResult SimObject::Step(double dt) {
@@ -449,7 +470,7 @@ StepResult SimObject::Step(double dt) {
     if (rest_time_ >= params_.sleep_time) {
       sleeping_ = true;
       for (auto& v : state_.v) v.setZero();
-      state_.have_prev = false;
+      ForgetHistory();
     }
   } else {
     rest_time_ = 0.0;

@@ -122,6 +122,8 @@ class SimObject {
   SimObject(Model model, const Parameters& params, Integrator integrator);
   void UpdateDerived();
   void SaveGood();
+  /// After a teleport, restore, reset, sleep or integrator change.
+  void ForgetHistory();
   void RestoreGood();
   bool CheckState() const;
 
