@@ -82,8 +82,12 @@ struct DeviceInfo {
 /// A haptic device. The daemon's loop thread calls everything except SafeStop(), which any
 /// thread may call at any time (the watchdog does). Nothing here allocates after Open().
 ///
-/// Per tick the loop does: Exchange(dt) -> state() -> (render) -> SetWrench(w). Exchange sends
-/// the command computed by the previous SetWrench and reads the sensors.
+/// Per tick the loop does: Exchange(dt) -> state() -> (render) -> SetWrench(w) -> Post().
+/// Exchange reads the sensors; Post sends the command SetWrench computed right away, so a slow
+/// link's reply arrives while the loop sleeps and the next Exchange only reads it. A device
+/// whose link cannot split the exchange ignores Post, and Exchange sends the command first.
+/// Either way the command displayed during a tick was computed from the previous sensor
+/// reading: the order only moves the wait for the reply out of the tick.
 ///
 /// How to add a device (the numbered skeleton; SpidarG in spidar_g.h is a full example):
 ///  1. Describe the device in a configuration file and a parser that returns rheo::Result with
@@ -119,6 +123,10 @@ class HapticDevice {
   virtual Status Exchange(double dt) = 0;
   /// Sets the wrench for the next Exchange() (limits applied; see status().requested).
   virtual void SetWrench(const Wrench& wrench) = 0;
+  /// Sends the command SetWrench computed now, when the link can overlap the reply with the
+  /// loop's sleep; the next Exchange() then reads that reply instead of sending again. Default:
+  /// nothing (Exchange() sends and reads in one go).
+  virtual Status Post() { return Status::Ok(); }
   /// Every motor to minimum tension now, from any thread; latches kFaultSafeStop.
   virtual void SafeStop() = 0;
   /// Clears latched faults (not kFaultNotConnected while disconnected).

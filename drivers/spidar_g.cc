@@ -94,9 +94,27 @@ void SpidarG::Close() {
 Status SpidarG::ExchangeLocked(const std::array<int16_t, kSpidarStrings>& command,
                                uint32_t* buttons) {
   std::lock_guard lock(io_mutex_);
+  const bool stop = stop_requested_.load(std::memory_order_acquire);
+  if (link_->posted()) {
+    Status s = link_->Collect(counts_, buttons);
+    // A SafeStop that could not reach the link leaves the posted command on the motors: replace
+    // it now rather than a tick later.
+    if (!s.ok() || !stop) return s;
+  }
   // A SafeStop that arrived before we took the lock wins over the command we were given.
-  const auto& out = stop_requested_.load(std::memory_order_acquire) ? min_command_ : command;
-  return link_->Exchange(out, counts_, buttons);
+  return link_->Exchange(stop ? min_command_ : command, counts_, buttons);
+}
+
+Status SpidarG::Post() {
+  if (!open_ || !link_->can_post()) return Status::Ok();
+  std::lock_guard lock(io_mutex_);
+  const bool safe = status_.faults != kFaultNone || stop_requested_.load(std::memory_order_acquire);
+  Status s = link_->Post(safe ? min_command_ : command_);
+  if (!s.ok()) {
+    status_.faults |= kFaultProtocol;
+    ++status_.protocol_errors;
+  }
+  return s;
 }
 
 Status SpidarG::Calibrate() {

@@ -20,6 +20,9 @@ namespace rheo::drivers {
 /// while any fault is set, before calibration, or after SafeStop()), reads the encoders, updates
 /// the pose and velocities and runs the zero-length, slack-string and workspace guards.
 /// SetWrench() applies the force and force-rate limits and solves the QP at the current pose.
+/// Post() (UART boards) sends that command at once; the next Exchange() then only reads the
+/// reply. A SafeStop() between the two reads the outstanding reply itself and sends minimum
+/// tension, and Exchange() falls back to a full exchange.
 ///
 /// Threads: everything but SafeStop() on one thread (the loop). SafeStop() may come from any
 /// thread; it serialises with Exchange() on an internal mutex (waiting at most one reply
@@ -37,6 +40,7 @@ class SpidarG final : public HapticDevice {
   Status Calibrate() override;
   Status Exchange(double dt) override;
   void SetWrench(const Wrench& wrench) override;
+  Status Post() override;
   void SafeStop() override;
   void ClearFaults() override;
 
@@ -54,7 +58,8 @@ class SpidarG final : public HapticDevice {
  private:
   static constexpr uint32_t kLatched =
       kFaultNotConnected | kFaultProtocol | kFaultZeroLength | kFaultSolver | kFaultSafeStop;
-  // Sends `command` and reads counts; holds io_mutex_ for the duration.
+  // Reads the reply to a posted command, or sends `command` and reads counts; holds io_mutex_
+  // for the duration.
   Status ExchangeLocked(const std::array<int16_t, kSpidarStrings>& command, uint32_t* buttons);
   void EncodeTensions(const StringVector& tensions, std::array<int16_t, kSpidarStrings>* out) const;
   void ShowMinimumTension();

@@ -44,6 +44,21 @@ class MotorLink {
   /// and the button bits. Must not allocate.
   virtual Status Exchange(std::span<const int16_t> command, std::span<int64_t> counts,
                           uint32_t* buttons) = 0;
+
+  /// Split exchange, for links whose reply takes a while (a serial line): Post() sends the
+  /// command and returns without waiting; Collect() reads the reply. Exchange() called while a
+  /// reply is outstanding reads and drops that reply first, so the byte stream never goes out of
+  /// step whoever calls next. Links that cannot split return false from can_post() and
+  /// FailedPrecondition from both. Neither allocates except on error paths.
+  virtual bool can_post() const { return false; }
+  virtual Status Post(std::span<const int16_t> /*command*/) {
+    return FailedPrecondition("this motor link cannot split an exchange");
+  }
+  virtual Status Collect(std::span<int64_t> /*counts*/, uint32_t* /*buttons*/) {
+    return FailedPrecondition("this motor link cannot split an exchange");
+  }
+  /// A posted command's reply has not been collected (or dropped by Exchange()) yet.
+  virtual bool posted() const { return false; }
 };
 
 }  // namespace rheo::drivers

@@ -35,6 +35,8 @@ Status UartMotorLink::Open(int num_motors) {
                      std::to_string(num_motors)};
   }
   for (auto& u : unwrap_) u.Reset();
+  posted_ = false;
+  resync_ = false;
   model_ = "open UART motor board";
   for (const auto& b : boards_) {
     model_ += " #" + std::to_string(b.board_id) + " (model " + std::to_string(b.model) + ", " +
@@ -43,38 +45,94 @@ Status UartMotorLink::Open(int num_motors) {
   return Status::Ok();
 }
 
-Status UartMotorLink::Exchange(std::span<const int16_t> command, std::span<int64_t> counts,
-                               uint32_t* buttons) {
+Status UartMotorLink::WriteCommand(const uart::BoardInfo& board,
+                                   std::span<const int16_t> command) {
+  std::array<uint8_t, uart::kMaxFrameSize> frame;
+  const size_t n = uart::EncodeCurrentCommand(board.board_id, command, frame);
+  return transport_->Write(std::span(frame.data(), n), reply_timeout_us_);
+}
+
+Status UartMotorLink::ReadCounts(const uart::BoardInfo& board, size_t first_motor,
+                                 std::span<int64_t> counts) {
+  std::array<uint8_t, uart::kMaxFrameSize> frame;
+  const size_t reply_size = uart::CurrentReplySize(board.n_motor, board.n_force);
+  if (Status s = transport_->ReadExact(std::span(frame.data(), reply_size), reply_timeout_us_);
+      !s.ok()) {
+    resync_ = true;
+    return s;
+  }
+  uart::SensorReply reply;
+  if (Status s = uart::DecodeCurrentReply(std::span(frame.data(), reply_size), board, &reply);
+      !s.ok()) {
+    resync_ = true;
+    return s;
+  }
+  for (int i = 0; i < board.n_motor; ++i) {
+    const size_t m = first_motor + static_cast<size_t>(i);
+    counts[m] = unwrap_[m].Update(static_cast<uint16_t>(reply.position[i]));
+  }
+  return Status::Ok();
+}
+
+void UartMotorLink::Prepare() {
+  // A posted reply nobody collected is read (keeping the counters' unwrapping continuous) and
+  // dropped; one that does not come sets resync_.
+  if (posted_) {
+    uint32_t buttons = 0;
+    (void)Collect(posted_counts_, &buttons);
+  }
   // A reply that missed its deadline may still arrive: drop it before asking again.
   if (resync_) {
     transport_->DiscardInput();
     resync_ = false;
   }
-  std::array<uint8_t, uart::kMaxFrameSize> frame;
+}
+
+Status UartMotorLink::Exchange(std::span<const int16_t> command, std::span<int64_t> counts,
+                               uint32_t* buttons) {
+  Prepare();
   size_t motor = 0;
   for (const uart::BoardInfo& b : boards_) {
-    const size_t n = uart::EncodeCurrentCommand(
-        b.board_id, command.subspan(motor, static_cast<size_t>(b.n_motor)), frame);
-    if (Status s = transport_->Write(std::span(frame.data(), n), reply_timeout_us_); !s.ok()) {
-      return s;
-    }
-    const size_t reply_size = uart::CurrentReplySize(b.n_motor, b.n_force);
-    if (Status s = transport_->ReadExact(std::span(frame.data(), reply_size), reply_timeout_us_);
-        !s.ok()) {
-      resync_ = true;
-      return s;
-    }
-    uart::SensorReply reply;
-    if (Status s = uart::DecodeCurrentReply(std::span(frame.data(), reply_size), b, &reply);
-        !s.ok()) {
-      resync_ = true;
-      return s;
-    }
-    for (int i = 0; i < b.n_motor; ++i, ++motor) {
-      counts[motor] = unwrap_[motor].Update(static_cast<uint16_t>(reply.position[i]));
-    }
+    const auto n = static_cast<size_t>(b.n_motor);
+    if (Status s = WriteCommand(b, command.subspan(motor, n)); !s.ok()) return s;
+    if (Status s = ReadCounts(b, motor, counts); !s.ok()) return s;
+    motor += n;
   }
   // The published reply carries no button bits.
+  *buttons = 0;
+  return Status::Ok();
+}
+
+Status UartMotorLink::Post(std::span<const int16_t> command) {
+  Prepare();
+  if (boards_.empty()) return FailedPrecondition("UART motor link: Post() before Open()");
+  // Boards share one line: all but the last answer before the next is addressed, so their
+  // replies cannot overlap; only the last board's reply is left outstanding.
+  size_t motor = 0;
+  for (size_t k = 0; k + 1 < boards_.size(); ++k) {
+    const uart::BoardInfo& b = boards_[k];
+    const auto n = static_cast<size_t>(b.n_motor);
+    if (Status s = WriteCommand(b, command.subspan(motor, n)); !s.ok()) return s;
+    if (Status s = ReadCounts(b, motor, posted_counts_); !s.ok()) return s;
+    motor += n;
+  }
+  const uart::BoardInfo& last = boards_.back();
+  if (Status s = WriteCommand(last, command.subspan(motor, static_cast<size_t>(last.n_motor)));
+      !s.ok()) {
+    return s;
+  }
+  posted_ = true;
+  return Status::Ok();
+}
+
+Status UartMotorLink::Collect(std::span<int64_t> counts, uint32_t* buttons) {
+  if (!posted_) return FailedPrecondition("UART motor link: Collect() without a posted command");
+  posted_ = false;
+  size_t motor = 0;
+  for (size_t k = 0; k + 1 < boards_.size(); ++k) {
+    for (int i = 0; i < boards_[k].n_motor; ++i, ++motor) counts[motor] = posted_counts_[motor];
+  }
+  if (Status s = ReadCounts(boards_.back(), motor, counts); !s.ok()) return s;
   *buttons = 0;
   return Status::Ok();
 }

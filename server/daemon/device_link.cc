@@ -183,7 +183,10 @@ void DeviceLink::ReleaseContact() {
   forced_count_ = 0;
 }
 
-void DeviceLink::BeforeStep(const rt::TickInfo& info) {
+void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, ToolTelemetry* out) {
+  // The exchange comes after the simulation step, which does not read the device: the reply to
+  // the command posted at the end of the last tick has had the loop's sleep and the step to
+  // arrive, and the pose it carries is exactly as fresh as if it were read first.
   const Status s = device_->Exchange(info.dt);
   const int64_t done = drivers::MonotonicNowNs();
   if (dog_ && !dog_armed_) {
@@ -196,7 +199,6 @@ void DeviceLink::BeforeStep(const rt::TickInfo& info) {
   } else {
     ++t_.device_errors;
   }
-  if (done - info.deadline_ns > (int64_t)(info.dt * 0.5e9)) ++t_.deadline_misses;
 
   // A stall (watchdog trip, a missed reply) latched a stop; after enough good ticks, and unless
   // someone pressed the emergency stop, the loop clears it.
@@ -210,10 +212,7 @@ void DeviceLink::BeforeStep(const rt::TickInfo& info) {
   } else {
     healthy_ticks_ = 0;
   }
-}
 
-void DeviceLink::AfterStep(const rt::TickInfo& info, std::span<EngineSlot> slots,
-                           ToolTelemetry* out) {
   const drivers::ToolState& tool = device_->state();
   const Vec3 position = origin_ + tool.pose.position;
   // The tool renders against the first object that has a renderer.
@@ -257,6 +256,11 @@ void DeviceLink::AfterStep(const rt::TickInfo& info, std::span<EngineSlot> slots
   }
   // The renderer's wrench is the force on the hand: what the strings pull the grip with.
   device_->SetWrench(command);
+  // The command leaves now; its reply arrives while the loop sleeps and steps.
+  if (!device_->Post().ok()) ++t_.device_errors;
+  // A command that leaves after the next tick's deadline reaches the motors a period late.
+  if (drivers::MonotonicNowNs() - info.deadline_ns > static_cast<int64_t>(info.dt * 1e9))
+    ++t_.deadline_misses;
 
   const drivers::DeviceStatus& st = device_->status();
   t_.connected = st.connected;

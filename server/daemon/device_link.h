@@ -1,6 +1,6 @@
 // The haptic device in the daemon: opens the configured device (the SPIDAR-G emulator, the
 // SPIDAR-G hardware or the network tool), supervises it with a watchdog, and runs the tool
-// against the scene on the loop thread (TickDevice).
+// against the scene on the loop thread (TickDevice::Tick).
 #pragma once
 
 #include <atomic>
@@ -49,9 +49,7 @@ class DeviceLink final : public TickDevice {
   ~DeviceLink() override;
 
   // TickDevice (loop thread).
-  void BeforeStep(const rt::TickInfo& info) override;
-  void AfterStep(const rt::TickInfo& info, std::span<EngineSlot> slots,
-                 ToolTelemetry* out) override;
+  void Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, ToolTelemetry* out) override;
   void Apply(const Command& command) override;
   void Forget(const EngineSlot& slot) override;
 

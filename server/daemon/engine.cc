@@ -124,7 +124,6 @@ void Engine::Tick(const rt::TickInfo& info) {
   // Bounded work per tick: a flood of commands is spread over ticks.
   for (int i = 0; i < 16 && commands_.Pop(c); ++i) Apply(c);
 
-  if (device_) device_->BeforeStep(info);
   const bool paused = paused_.load(std::memory_order_relaxed);
   if (!paused || step_once_) {
     for (int i = 0; i < slot_count_; ++i) {
@@ -139,7 +138,7 @@ void Engine::Tick(const rt::TickInfo& info) {
   object_count_.store(slot_count_, std::memory_order_relaxed);
 
   if (device_) {
-    device_->AfterStep(info, std::span<EngineSlot>(slots_.data(), slot_count_), &tool_scratch_);
+    device_->Tick(info, std::span<EngineSlot>(slots_.data(), slot_count_), &tool_scratch_);
     tool_scratch_.tick = info.tick;
     tool_.Store(tool_scratch_);
   }

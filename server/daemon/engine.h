@@ -89,7 +89,7 @@ struct ToolTelemetry {
   uint64_t exchanges = 0;                    // successful device exchanges
   uint64_t device_errors = 0;                // exchanges that failed
   uint64_t protocol_errors = 0;              // the driver's count of bad or missing replies
-  uint64_t deadline_misses = 0;  // ticks whose device exchange ended past half a period late
+  uint64_t deadline_misses = 0;  // ticks whose device command left after the next deadline
   uint64_t watchdog_trips = 0;
   uint64_t recoveries = 0;       // automatic restarts after a watchdog trip
   uint64_t renderer_errors = 0;  // renderer updates that failed (no force that tick)
@@ -110,11 +110,10 @@ struct EngineSlot {
 class TickDevice {
  public:
   virtual ~TickDevice() = default;
-  /// Before the simulation step: exchange with the device.
-  virtual void BeforeStep(const rt::TickInfo& info) = 0;
-  /// After the step: contact against `slots`, node forces, the device command; fills `out`.
-  virtual void AfterStep(const rt::TickInfo& info, std::span<EngineSlot> slots,
-                         ToolTelemetry* out) = 0;
+  /// After the simulation step (which reads nothing from the device): exchange with the device,
+  /// contact against `slots`, node forces for the next step, the device command; fills `out`.
+  virtual void Tick(const rt::TickInfo& info, std::span<EngineSlot> slots,
+                    ToolTelemetry* out) = 0;
   /// Device commands (kDeviceCalibrate, kDeviceClear, kSetToolOrigin).
   virtual void Apply(const Command& command) = 0;
   /// The object in `slot` is leaving the loop: forget any pointer into it.

@@ -33,9 +33,8 @@ void RunTicks(DeviceLink& link, int ticks, const std::function<void(int)>& move,
     info.dt = 1e-3;
     info.deadline_ns = info.start_ns = rt::Loop::NowNs();
     testing::AllocationCounter count;
-    link.BeforeStep(info);
     obj->Step(info.dt);
-    link.AfterStep(info, slots, &out);
+    link.Tick(info, slots, &out);
     *allocs += count.count();
     if (out.in_contact) ++*contact_ticks;
   }

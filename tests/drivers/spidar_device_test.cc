@@ -8,6 +8,8 @@
 #include "drivers/device_factory.h"
 #include "drivers/spidar_emulator.h"
 #include "drivers/spidar_g.h"
+#include "drivers/termios_transport.h"
+#include "drivers/uart_motor_link.h"
 #include "drivers/watchdog.h"
 #include "test_util.h"
 
@@ -195,6 +197,97 @@ TEST_F(SpidarDeviceTest, SafeStopFromAnotherThreadLatchesMinimumTension) {
   Run(50, w);
   EXPECT_EQ(dev_->status().faults, kFaultNone) << FaultNames(dev_->status().faults);
   EXPECT_LT((emu_->Snapshot().strings.force - w.force).norm(), 0.02);
+}
+
+// The daemon's order: Exchange reads the reply to the command Post sent at the end of the
+// previous tick, so the wait for the reply is outside the tick.
+TEST_F(SpidarDeviceTest, PostedTicksSendOneCommandEachAndDisplayTheWrench) {
+  CalibrateAtHome();
+  const Wrench w{Vec3(1.5, -0.5, 1.0), Vec3(0.005, 0.0, -0.01)};
+  auto posted_ticks = [&](int n) {
+    for (int k = 0; k < n; ++k) {
+      Status s = dev_->Exchange(kDt);
+      ASSERT_TRUE(s.ok()) << s.error().message;
+      dev_->SetWrench(w);
+      s = dev_->Post();
+      ASSERT_TRUE(s.ok()) << s.error().message;
+    }
+  };
+  posted_ticks(10);
+  // Once the last posted command's reply is read, the emulator has counted that command.
+  ASSERT_TRUE(dev_->Exchange(kDt).ok());
+  const uint64_t before = emu_->Snapshot().current_commands;
+  const long allocations = rheo::testing::ThreadAllocations();
+  dev_->SetWrench(w);
+  ASSERT_TRUE(dev_->Post().ok());
+  posted_ticks(389);
+  ASSERT_TRUE(dev_->Exchange(kDt).ok());
+  EXPECT_EQ(rheo::testing::ThreadAllocations() - allocations, 0);
+  const GripSnapshot s = emu_->Snapshot();
+  EXPECT_EQ(s.current_commands, before + 390);  // one command per tick, none repeated
+  EXPECT_EQ(s.protocol_errors, 0u);
+  EXPECT_EQ(dev_->status().protocol_errors, 0u);
+  EXPECT_EQ(dev_->status().faults, kFaultNone) << FaultNames(dev_->status().faults);
+  EXPECT_LT((s.strings.force - w.force).norm(), 0.02) << s.strings.force.transpose();
+  EXPECT_LT((s.strings.torque - w.torque).norm(), 5e-4) << s.strings.torque.transpose();
+  // The pose the driver read is the grip's (one exchange old at most).
+  const Vec3 truth = s.pose.position - calibration_truth_.position;
+  EXPECT_LT((dev_->state().pose.position - truth).norm(), 0.1e-3);
+}
+
+// The watchdog's SafeStop may land between Post and the next Exchange, with a reply
+// outstanding: it reads that reply itself and sends minimum tension, and the stream stays in
+// step for both.
+TEST_F(SpidarDeviceTest, SafeStopWithAReplyOutstandingKeepsTheStreamInStep) {
+  CalibrateAtHome();
+  const Wrench w{Vec3(0.0, 2.0, 0.0), Vec3::Zero()};
+  Run(100, w);
+  EXPECT_NE(emu_->Snapshot().last_command, MinDigits());
+  const uint64_t before = emu_->Snapshot().current_commands;
+  ASSERT_TRUE(dev_->Post().ok());
+  std::thread([this] { dev_->SafeStop(); }).join();
+  GripSnapshot s = emu_->Snapshot();
+  EXPECT_EQ(s.current_commands, before + 2);  // the posted command, then SafeStop's own
+  EXPECT_EQ(s.last_command, MinDigits());
+  // The loop's Exchange finds its reply taken and exchanges in full; no protocol error.
+  ASSERT_TRUE(dev_->Exchange(kDt).ok());
+  EXPECT_TRUE(dev_->status().faults & kFaultSafeStop);
+  EXPECT_EQ(dev_->status().protocol_errors, 0u);
+  for (int k = 0; k < 50; ++k) {
+    ASSERT_TRUE(dev_->Exchange(kDt).ok());
+    dev_->SetWrench(w);
+    ASSERT_TRUE(dev_->Post().ok());
+  }
+  EXPECT_EQ(emu_->Snapshot().last_command, MinDigits());
+  EXPECT_EQ(emu_->Snapshot().protocol_errors, 0u);
+  EXPECT_EQ(dev_->status().protocol_errors, 0u);
+}
+
+TEST(UartMotorLinkSplit, CollectWithoutPostIsRefused) {
+  const SpidarConfig config = testutil::LoadFrame("x5");
+  EmulatorOptions opt;
+  opt.lockstep = true;
+  auto emu = SpidarEmulator::Start(config, opt);
+  ASSERT_TRUE(emu.ok()) << emu.error().message;
+  auto transport = TermiosTransport::Open((*emu)->pty_path());
+  ASSERT_TRUE(transport.ok()) << transport.error().message;
+  UartMotorLink link(std::move(transport).value(), config.board.board_ids, 200'000);
+  ASSERT_TRUE(link.Open(8).ok());
+  std::array<int64_t, 8> counts{};
+  uint32_t buttons = 0;
+  Status s = link.Collect(counts, &buttons);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().code, ErrorCode::kFailedPrecondition);
+  // Post, then a full exchange: the posted reply is dropped, not mistaken for the new one.
+  std::array<int16_t, 8> command{};
+  ASSERT_TRUE(link.Post(command).ok());
+  EXPECT_TRUE(link.posted());
+  ASSERT_TRUE(link.Exchange(command, counts, &buttons).ok());
+  EXPECT_FALSE(link.posted());
+  ASSERT_TRUE(link.Post(command).ok());
+  ASSERT_TRUE(link.Collect(counts, &buttons).ok());
+  EXPECT_EQ((*emu)->Snapshot().current_commands, 3u);
+  EXPECT_EQ((*emu)->Snapshot().protocol_errors, 0u);
 }
 
 TEST_F(SpidarDeviceTest, WatchdogTripsOnAStarvedLoop) {
