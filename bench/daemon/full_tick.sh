@@ -93,12 +93,13 @@ print(f"| {label:<8} | {tets:>5} | {int(loop.get('ticks', 0)):>6} | "
       f"{p('work','p50_us'):7.1f} {p('work','p99_us'):8.1f} {p('work','p999_us'):8.1f} | "
       f"{int(loop.get('late_ticks', 0)):>5} {int(loop.get('overruns', 0)):>6} {int(loop.get('skipped_ticks', 0)):>7} | "
       f"{int(c.get('deadline_misses', 0)):>5} {int(c.get('watchdog_trips', 0)):>4} {int(c.get('device_errors', 0)):>4} | "
+      f"{int(loop.get('restores', 0)):>4} | "
       f"{'yes' if loop.get('realtime_priority') else 'no':>3} |")
 EOF
   rm -rf "$data"
 }
 
 echo "# full tick, ${SECONDS_RUN} s per run, sketch $(basename "$SKETCH") at ${RESOLUTION} m, preset organ, implicit"
-echo "| run      |  tets |  ticks | period p50 / p99 / p99.9 / max [us]  | work p50 / p99 / p99.9 [us] |  late overrn skipped |  miss trip  err | rt  |"
+echo "| run      |  tets |  ticks | period p50 / p99 / p99.9 / max [us]  | work p50 / p99 / p99.9 [us] |  late overrn skipped |  miss trip  err | rstr | rt  |"
 run idle 0
 run loaded 1

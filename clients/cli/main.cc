@@ -115,6 +115,12 @@ int ShowStatus(const Global& g, bool json) {
   PrintPercentiles("wake latency", l.wake_latency());
   PrintPercentiles("tick work", l.work());
   if (!l.notes().empty()) std::printf("  notes: %s\n", l.notes().c_str());
+  if (l.restores() > 0) {
+    std::printf(
+        "  restores: %llu (an object's state went non-finite or too fast and was put back to its "
+        "last good state; see each object's restores in `rheoctl watch`)\n",
+        (unsigned long long)l.restores());
+  }
   std::printf("scene objects %u, stored objects %u, jobs %u, frame clients %u\n",
               st.scene_objects(), st.stored_objects(), st.running_jobs(), st.frame_clients());
   return 0;

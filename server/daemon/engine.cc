@@ -172,7 +172,7 @@ void Engine::Tick(const rt::TickInfo& info) {
     }
     f.objects[f.object_count++] =
         FrameObject{slots_[i].instance_id, first, static_cast<uint32_t>(x.size()), o.sleeping(),
-                    static_cast<uint64_t>(o.events().restores)};
+                    static_cast<uint64_t>(o.events().restores), o.kinetic_energy()};
     first += static_cast<uint32_t>(x.size());
   }
   frames_.Publish();

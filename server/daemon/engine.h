@@ -127,6 +127,7 @@ struct FrameObject {
   uint32_t vertex_count = 0;
   bool sleeping = false;
   uint64_t restores = 0;  // recoveries from a non-finite or exploding state so far
+  double kinetic_energy = 0.0;  // [J]
 };
 
 /// What the loop publishes every tick. Preallocated; the loop fills it without allocating.

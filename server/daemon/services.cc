@@ -19,6 +19,19 @@ void FillPercentiles(const rt::Histogram& h, v1::Percentiles* out) {
   out->set_count(h.count());
 }
 
+// Volume enclosed by `triangles` (outward, 3 indices each) over the frame's float positions
+// (x, y, z per vertex) [m^3]; computed here, off the loop, for the frames a client takes.
+double EnclosedVolume(const float* xyz, uint32_t vertex_count,
+                      const std::vector<uint32_t>& triangles) {
+  auto at = [&](uint32_t i) {
+    return i < vertex_count ? Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]) : Vec3::Zero();
+  };
+  double v = 0.0;
+  for (size_t t = 0; t + 2 < triangles.size(); t += 3)
+    v += at(triangles[t]).dot(at(triangles[t + 1]).cross(at(triangles[t + 2])));
+  return v / 6.0;
+}
+
 void SetVec(const std::array<double, 3>& a, v1::Vec3* out) {
   out->set_x(a[0]);
   out->set_y(a[1]);
@@ -78,6 +91,7 @@ grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetSta
   l->set_notes(loop.environment().notes);
   l->set_commands_applied(ctx_.engine->commands_applied());
   l->set_commands_rejected(ctx_.engine->commands_rejected());
+  l->set_restores(ctx_.engine->restores());
   out->set_device(ctx_.device);
   if (ctx_.device_link) out->add_capabilities("device");
   out->set_frame_clients(static_cast<uint32_t>(ctx_.hub->clients()));
@@ -150,10 +164,11 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
       v1::ObjectState* os = frame.add_objects();
       os->set_instance_id(fo.instance_id);
       os->set_sleeping(fo.sleeping);
-      if (request->positions()) {
-        const float* p = f.positions.data() + 3u * fo.first;
-        os->mutable_positions()->Add(p, p + 3u * fo.vertex_count);
-      }
+      os->set_kinetic_energy(fo.kinetic_energy);
+      os->set_restores(fo.restores);
+      const float* p = f.positions.data() + 3u * fo.first;
+      os->set_volume(EnclosedVolume(p, fo.vertex_count, entry->triangles));
+      if (request->positions()) os->mutable_positions()->Add(p, p + 3u * fo.vertex_count);
     }
     if (f.tool.present) FillFrameTool(f.tool, ctx_, frame.mutable_tool());
     frame.mutable_loop()->set_ticks(f.ticks);

@@ -391,6 +391,7 @@ void SimObject::RestoreGood() {
   std::copy(state_.good_a.begin(), state_.good_a.end(), state_.a.begin());
   std::copy(state_.good_tension.begin(), state_.good_tension.end(), state_.tension.begin());
   for (auto& r : state_.floor_reaction) r.setZero();
+  kinetic_energy_ = 0.0;
   ForgetHistory();
 }
 
@@ -447,12 +448,15 @@ StepResult SimObject::Step(double dt) {
   events_.substeps += substeps;
 
   // One pass: finite-ness, explosion, rest detection.
-  double max_speed2 = 0.0;
+  double max_speed2 = 0.0, twice_kinetic = 0.0;
   bool finite = true;
   for (int32_t i = 0; i < model_.num_nodes; ++i) {
     finite &= state_.x[i].allFinite() && state_.v[i].allFinite();
-    max_speed2 = std::max(max_speed2, state_.v[i].squaredNorm());
+    const double v2 = state_.v[i].squaredNorm();
+    max_speed2 = std::max(max_speed2, v2);
+    twice_kinetic += model_.mass[i] * v2;
   }
+  kinetic_energy_ = 0.5 * twice_kinetic;
   for (double a : state_.a) finite &= std::isfinite(a);
   if (!finite || max_speed2 > params_.max_speed * params_.max_speed) {
     RestoreGood();
@@ -469,6 +473,7 @@ StepResult SimObject::Step(double dt) {
     rest_time_ += dt;
     if (rest_time_ >= params_.sleep_time) {
       sleeping_ = true;
+      kinetic_energy_ = 0.0;
       for (auto& v : state_.v) v.setZero();
       ForgetHistory();
     }

@@ -108,6 +108,8 @@ class SimObject {
   Integrator integrator() const { return integrator_; }
   const EventCounts& events() const { return events_; }
   bool sleeping() const { return sleeping_; }
+  /// Kinetic energy at the end of the last step [J] (computed in the step's own check pass).
+  double kinetic_energy() const { return kinetic_energy_; }
   double time() const { return state_.time; }
   /// Explicit substeps per tick of dt that the stability bound asks for.
   int32_t RequiredSubsteps(double dt) const;
@@ -138,6 +140,7 @@ class SimObject {
   Vec3 placement_ = Vec3::Zero();  // sum of Translate() offsets since build or Reset [m]
   double rest_time_ = 0.0;
   bool sleeping_ = false;
+  double kinetic_energy_ = 0.0;  // [J], after the last step
   int32_t steps_since_good_ = 0;
   EventCounts events_;
 };

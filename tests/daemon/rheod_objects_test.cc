@@ -269,7 +269,18 @@ TEST(RheodScene, ObjectFallsAndStreamsTopologyOnceThenPositions) {
     const float y = lowest(got[i].objects(0));
     y_min = std::min(y_min, y);
     EXPECT_GT(y, -0.01f) << "frame " << i << ": the floor holds the object";
+    // Each frame reports the object's volume (within 10 % of the mesh's while it falls and lands
+    // on the organ preset), its kinetic energy, and no restores.
+    const v1::ObjectState& o = got[i].objects(0);
+    EXPECT_NEAR(o.volume(), c.object.mesh().surface_volume(), 0.1 * c.object.mesh().surface_volume())
+        << "frame " << i;
+    EXPECT_GE(o.kinetic_energy(), 0.0);
+    EXPECT_EQ(o.restores(), 0u);
   }
+  // Something in the run was moving: the fall or the landing.
+  double ke_max = 0.0;
+  for (const auto& g : got) ke_max = std::max(ke_max, g.objects(0).kinetic_energy());
+  EXPECT_TRUE(ke_max > 0.0 || got.back().objects(0).sleeping());
   EXPECT_TRUE(y0 < 0.019f || y_min < y0) << "first frame " << y0 << ", lowest " << y_min;
 
   grpc::ClientContext rctx;
