@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "drivers/haptic_device.h"
+#include "drivers/pi_mutex.h"
 #include "drivers/spidar_config.h"
 #include "drivers/uart_protocol.h"
 
@@ -109,7 +110,9 @@ class SpidarEmulator {
   std::atomic<bool> stop_{false};
   std::atomic<bool> realtime_{false};
 
-  mutable std::mutex mutex_;  // guards everything below against the API threads
+  // Guards everything below against the API threads; priority-inheriting, so an API thread
+  // preempted while holding it cannot stall the (real-time) emulator thread.
+  mutable PiMutex mutex_;
   GripSnapshot state_;
   double inertia_ = 0.0;
   Pose hand_target_;

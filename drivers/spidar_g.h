@@ -7,6 +7,7 @@
 #include <mutex>
 
 #include "drivers/haptic_device.h"
+#include "drivers/pi_mutex.h"
 #include "drivers/spidar_config.h"
 #include "drivers/spidar_kinematics.h"
 #include "drivers/tension_qp.h"
@@ -72,7 +73,7 @@ class SpidarG final : public HapticDevice {
   DeviceStatus status_;
   DeviceInfo info_;
 
-  std::mutex io_mutex_;                      // serialises link_ between loop and SafeStop
+  PiMutex io_mutex_;  // serialises link_ between the loop and SafeStop (any thread)
   std::atomic<bool> stop_requested_{false};  // set by SafeStop, folded into faults by the loop
   std::atomic<bool> open_{false};
   std::array<int16_t, kSpidarStrings> command_{};       // next command [digits]
