@@ -1,6 +1,7 @@
 // The daemon's 1 kHz tick with --device sim-spidar-g, measured in-process: the same Engine,
 // DeviceLink (emulator + SPIDAR-G driver + watchdog), renderer and simulated object as rheod.
-// Scenarios: an object of about 1,250 and about 5,000 tetrahedra (hard jelly, implicit), the
+// Scenarios: first the machine's floor (the same loop with an empty tick), then an object of
+// about 1,250 and about 5,000 tetrahedra (hard jelly, implicit), the
 // emulated hand pressing and releasing it once a second; idle, and loaded with 8 frame watchers
 // (the FrameService path: hub snapshot -> Frame message with positions -> serialised) at 60 Hz
 // plus a mesh job (sketch -> solid, fine resolution) running back to back.
@@ -66,6 +67,77 @@ void Print(const rt::Histogram& h) {
               h.Quantile(0.999) / 1e3, h.max_ns() / 1e3);
 }
 
+// The load: 8 frame watchers at 60 Hz (hub snapshot -> Frame with positions -> serialised) and
+// a mesh job running back to back, until `stop`.
+std::vector<std::thread> StartLoad(const std::string& strokes, FrameHub& hub,
+                                   std::atomic<bool>& stop, std::atomic<uint64_t>& frames,
+                                   std::atomic<uint64_t>& jobs) {
+  std::vector<std::thread> load;
+  for (int i = 0; i < 8; ++i)
+    load.emplace_back([&] {
+      const int h = hub.Register(60.0);
+      uint64_t seq = 0;
+      v1::Frame frame;
+      std::string bytes;
+      while (!stop.load()) {
+        auto snap =
+            hub.WaitNewer(seq, std::chrono::steady_clock::now() + std::chrono::milliseconds(200),
+                          [&] { return stop.load(); });
+        if (!snap) continue;
+        seq = snap->seq;
+        frame.Clear();
+        const LoopFrame& f = snap->frame;
+        for (uint32_t k = 0; k < f.object_count; ++k) {
+          auto* os = frame.add_objects();
+          const float* p = f.positions.data() + 3u * f.objects[k].first;
+          os->mutable_positions()->Add(p, p + 3u * f.objects[k].vertex_count);
+        }
+        frame.SerializeToString(&bytes);
+        frames.fetch_add(1);
+        std::this_thread::sleep_for(std::chrono::milliseconds(16));
+      }
+      hub.Unregister(h);
+    });
+  load.emplace_back([&] {
+    while (!stop.load()) {
+      (void)Build(strokes, 0.003);
+      jobs.fetch_add(1);
+    }
+  });
+  return load;
+}
+
+// The machine's own floor: the same loop (SCHED_FIFO, locked memory) with nothing to do but
+// publish an empty frame, under the same load. Whatever the real tick shows beyond this is ours.
+int RunFloor(const std::string& strokes, bool loaded, double seconds, const std::string& label) {
+  Engine engine{EngineOptions{}};
+  engine.Start();
+  FrameHub hub(engine);
+  hub.Start();
+  std::atomic<bool> stop{false};
+  std::atomic<uint64_t> jobs{0}, frames{0};
+  std::vector<std::thread> load;
+  if (loaded) load = StartLoad(strokes, hub, stop, frames, jobs);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const rt::LoopStats& s = engine.loop().stats();
+  const uint64_t late0 = s.late_ticks.load(), over0 = s.overruns.load(),
+                 skipped0 = s.skipped_ticks.load();
+  std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+  stop.store(true);
+  std::printf("| %-26s | %5d |", label.c_str(), 0);
+  Print(s.period);
+  Print(s.work);
+  std::printf(" %6llu %6llu %7llu | %5s %4s %4s | %4s | %4llu %3llu |\n",
+              (unsigned long long)(s.late_ticks.load() - late0),
+              (unsigned long long)(s.overruns.load() - over0),
+              (unsigned long long)(s.skipped_ticks.load() - skipped0), "-", "-", "-", "-",
+              (unsigned long long)frames.load(), (unsigned long long)jobs.load());
+  for (auto& t : load) t.join();
+  hub.Stop();
+  engine.Stop();
+  return 0;
+}
+
 int RunScenario(const std::string& strokes, const StoredObject& obj, bool loaded, double seconds,
                 const std::string& label) {
   DeviceLinkOptions o;
@@ -129,39 +201,7 @@ int RunScenario(const std::string& strokes, const StoredObject& obj, bool loaded
   std::atomic<bool> stop{false};
   std::atomic<uint64_t> jobs{0}, frames{0};
   std::vector<std::thread> load;
-  if (loaded) {
-    for (int i = 0; i < 8; ++i)
-      load.emplace_back([&] {
-        const int h = hub.Register(60.0);
-        uint64_t seq = 0;
-        v1::Frame frame;
-        std::string bytes;
-        while (!stop.load()) {
-          auto snap =
-              hub.WaitNewer(seq, std::chrono::steady_clock::now() + std::chrono::milliseconds(200),
-                            [&] { return stop.load(); });
-          if (!snap) continue;
-          seq = snap->seq;
-          frame.Clear();
-          const LoopFrame& f = snap->frame;
-          for (uint32_t k = 0; k < f.object_count; ++k) {
-            auto* os = frame.add_objects();
-            const float* p = f.positions.data() + 3u * f.objects[k].first;
-            os->mutable_positions()->Add(p, p + 3u * f.objects[k].vertex_count);
-          }
-          frame.SerializeToString(&bytes);
-          frames.fetch_add(1);
-          std::this_thread::sleep_for(std::chrono::milliseconds(16));
-        }
-        hub.Unregister(h);
-      });
-    load.emplace_back([&] {
-      while (!stop.load()) {
-        (void)Build(strokes, 0.003);
-        jobs.fetch_add(1);
-      }
-    });
-  }
+  if (loaded) load = StartLoad(strokes, hub, stop, frames, jobs);
   // Warm up 0.5 s, then measure a fresh window.
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   const rt::LoopStats& s = engine.loop().stats();
@@ -220,6 +260,11 @@ int main(int argc, char** argv) {
   std::printf("| %-26s | %5s | %35s | %35s | %6s %6s %7s | %5s %4s %4s | %4s | %4s %3s |\n",
               "scenario", "tets", "period p50 / p99 / p99.9 / max", "work p50 / p99 / p99.9 / max",
               "late", "overr", "skipped", "miss", "trip", "err", "cont", "frms", "job");
+  for (bool loaded : {false, true}) {
+    if (RunFloor(strokes, loaded, seconds,
+                 std::string("empty tick (floor), ") + (loaded ? "loaded" : "idle")) != 0)
+      return 1;
+  }
   for (size_t target : {size_t{1250}, size_t{5000}}) {
     auto obj = BuildNear(strokes, target);
     if (!obj.ok()) {
