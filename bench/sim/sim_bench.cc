@@ -12,6 +12,7 @@
 #include <cstring>
 #include <ctime>
 #include <fstream>
+#include <span>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -59,6 +60,16 @@ TetMesh BoxWithTets(int tets) {
   return *MakeBoxTetMesh(nx, ny, nz, Vec3(0.1, 0.06, 0.08));
 }
 
+// A box of the 10:6:8 shape with about `tets` tetrahedra in cells of edge `cell` [m]: the object
+// grows with the count, the element size (and so the stiffness per mass) stays.
+TetMesh BoxWithCell(int tets, double cell) {
+  const double s = std::cbrt(tets / 6.0 / (1.0 * 0.6 * 0.8));
+  const int nx = std::max(1, static_cast<int>(std::lround(s)));
+  const int ny = std::max(1, static_cast<int>(std::lround(0.6 * s)));
+  const int nz = std::max(1, static_cast<int>(std::lround(0.8 * s)));
+  return *MakeBoxTetMesh(nx, ny, nz, cell * Vec3(nx, ny, nz));
+}
+
 // An integrator as the benches name it: the scheme plus the implicit-damping switch.
 struct Method {
   const char* name;
@@ -78,14 +89,11 @@ constexpr Method kMethods[] = {
 };
 
 // ---------------------------------------------------------------------------------------------
-int Speed(int max_tets) {
-  std::printf("# speed: one 1 ms tick, object settling on the floor (awake), one core\n");
-  std::printf("%8s %7s %8s %-24s %5s %9s %9s %9s %10s\n", "tets", "nodes", "edges", "integrator",
-              "subst", "median_us", "p90_us", "us/ktet", "CG it/tick");
-  for (int target : {100, 1000, 5000, 20000, 100000}) {
-    if (target > max_tets) break;
-    const TetMesh mesh = BoxWithTets(target);
-    for (const Method& method : kMethods) {
+// One row per method: the median tick of `mesh` settling on the floor.
+int SpeedRows(const TetMesh& mesh, std::span<const Method> methods) {
+  const size_t target = mesh.tets.size();
+  {
+    for (const Method& method : methods) {
       Parameters p = FindPreset("organ")->params;
       p.sleep_time = 0.0;
       method.Apply(p);
@@ -93,7 +101,7 @@ int Speed(int max_tets) {
       if (!obj.ok()) return 2;
       SimObject& s = **obj;
       s.Translate(Vec3(0, 0.005, 0));
-      const int ticks = target >= 100000 ? 15 : target >= 20000 ? 40 : 200;
+      const int ticks = target >= 60000 ? 25 : target >= 15000 ? 40 : 200;
       for (int k = 0; k < 5; ++k) s.Step(1e-3);
       if (method.integrator == Integrator::kImplicitEuler)
         std::printf("# shape springs at 1 ms: %s (%d tets implicit)\n",
@@ -117,6 +125,36 @@ int Speed(int max_tets) {
                   s.model().num_nodes, s.model().edges.size(), method.name, double(sub) / ticks,
                   med, Percentile(us, 0.9), med / (mesh.tets.size() / 1e3), double(it) / ticks);
     }
+  }
+  return 0;
+}
+
+int Speed(int max_tets) {
+  std::printf("# speed: one 1 ms tick, object settling on the floor (awake), one core\n");
+  const char* header = "%8s %7s %8s %-24s %5s %9s %9s %9s %10s\n";
+  std::printf(header, "tets", "nodes", "edges", "integrator", "subst", "median_us", "p90_us",
+              "us/ktet", "CG it/tick");
+  // The same 10 cm box, refined: the elements get smaller and stiffer for their mass.
+  for (int target : {100, 1000, 5000, 20000, 100000}) {
+    if (target > max_tets) break;
+    if (int rc = SpeedRows(BoxWithTets(target), kMethods); rc != 0) return rc;
+  }
+  // The 5k box's cells (10 cm / 12 = 8.3 mm), the box growing: the cost of the code per
+  // element, with the conditioning of the system held.
+  const double cell = 0.1 / 12.0;
+  std::printf("# constant resolution: cells of %.1f mm, the box grows with the count\n",
+              cell * 1e3);
+  std::printf(header, "tets", "nodes", "edges", "integrator", "subst", "median_us", "p90_us",
+              "us/ktet", "CG it/tick");
+  const std::span<const Method> implicit(kMethods + 2, 2);
+  for (int target : {1000, 5000, 20000, 100000}) {
+    if (target > max_tets) break;
+    const TetMesh mesh = BoxWithCell(target, cell);
+    Vec3 lo = mesh.positions[0], hi = lo;
+    for (const Vec3& x : mesh.positions) lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
+    const Vec3 size = hi - lo;
+    std::printf("# %.0f x %.0f x %.0f cm\n", size.x() * 100, size.y() * 100, size.z() * 100);
+    if (int rc = SpeedRows(mesh, implicit); rc != 0) return rc;
   }
   return 0;
 }
