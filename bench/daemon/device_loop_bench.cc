@@ -107,33 +107,59 @@ std::vector<std::thread> StartLoad(const std::string& strokes, FrameHub& hub,
   return load;
 }
 
-// The machine's own floor: the same loop (SCHED_FIFO, locked memory) with nothing to do but
-// publish an empty frame, under the same load. Whatever the real tick shows beyond this is ours.
-int RunFloor(const std::string& strokes, bool loaded, double seconds, const std::string& label) {
-  Engine engine{EngineOptions{}};
-  engine.Start();
+// Runs `engine` for `seconds` after a 0.5 s warm-up, idle or under the load, and prints a row.
+// With a device attached (`tets` > 0) the device columns come from its telemetry.
+void Measure(Engine& engine, const std::string& strokes, bool loaded, double seconds,
+             const std::string& label, size_t tets, bool device) {
   FrameHub hub(engine);
   hub.Start();
   std::atomic<bool> stop{false};
   std::atomic<uint64_t> jobs{0}, frames{0};
   std::vector<std::thread> load;
   if (loaded) load = StartLoad(strokes, hub, stop, frames, jobs);
+  // Warm up 0.5 s, then measure a fresh window.
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   const rt::LoopStats& s = engine.loop().stats();
+  const ToolTelemetry before = engine.tool();
   const uint64_t late0 = s.late_ticks.load(), over0 = s.overruns.load(),
                  skipped0 = s.skipped_ticks.load();
-  std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+  // The loop's histograms are cumulative: the percentiles include the 0.5 s warm-up.
+  uint64_t touching = 0, samples = 0;
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < end) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    ++samples;
+    if (engine.tool().in_contact) ++touching;
+  }
   stop.store(true);
-  std::printf("| %-26s | %5d |", label.c_str(), 0);
+  const ToolTelemetry after = engine.tool();
+  std::printf("| %-26s | %5zu |", label.c_str(), tets);
   Print(s.period);
   Print(s.work);
-  std::printf(" %6llu %6llu %7llu | %5s %4s %4s | %4s | %4llu %3llu |\n",
-              (unsigned long long)(s.late_ticks.load() - late0),
+  std::printf(" %6llu %6llu %7llu |", (unsigned long long)(s.late_ticks.load() - late0),
               (unsigned long long)(s.overruns.load() - over0),
-              (unsigned long long)(s.skipped_ticks.load() - skipped0), "-", "-", "-", "-",
-              (unsigned long long)frames.load(), (unsigned long long)jobs.load());
+              (unsigned long long)(s.skipped_ticks.load() - skipped0));
+  if (device) {
+    std::printf(" %5llu %4llu %4llu | %3.0f%% |",
+                (unsigned long long)(after.deadline_misses - before.deadline_misses),
+                (unsigned long long)(after.watchdog_trips - before.watchdog_trips),
+                (unsigned long long)(after.device_errors - before.device_errors),
+                100.0 * touching / std::max<uint64_t>(samples, 1));
+  } else {
+    std::printf(" %5s %4s %4s | %4s |", "-", "-", "-", "-");
+  }
+  std::printf(" %4llu %3llu |\n", (unsigned long long)frames.load(),
+              (unsigned long long)jobs.load());
   for (auto& t : load) t.join();
   hub.Stop();
+}
+
+// The machine's own floor: the same loop (SCHED_FIFO, locked memory) with nothing to do but
+// publish an empty frame, under the same load. Whatever the real tick shows beyond this is ours.
+int RunFloor(const std::string& strokes, bool loaded, double seconds, const std::string& label) {
+  Engine engine{EngineOptions{}};
+  engine.Start();
+  Measure(engine, strokes, loaded, seconds, label, 0, /*device=*/false);
   engine.Stop();
   return 0;
 }
@@ -196,42 +222,7 @@ int RunScenario(const std::string& strokes, const StoredObject& obj, bool loaded
     p.position.y() = -(r + 0.005) - 0.002 - 0.003 * (1.0 - std::cos(2.0 * M_PI * (t - t0)));
     return p;
   });
-  FrameHub hub(engine);
-  hub.Start();
-  std::atomic<bool> stop{false};
-  std::atomic<uint64_t> jobs{0}, frames{0};
-  std::vector<std::thread> load;
-  if (loaded) load = StartLoad(strokes, hub, stop, frames, jobs);
-  // Warm up 0.5 s, then measure a fresh window.
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  const rt::LoopStats& s = engine.loop().stats();
-  const ToolTelemetry before = engine.tool();
-  const uint64_t late0 = s.late_ticks.load(), over0 = s.overruns.load(),
-                 skipped0 = s.skipped_ticks.load();
-  // The loop's histograms are cumulative: the percentiles include the 0.5 s warm-up.
-  uint64_t touching = 0, samples = 0;
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-  while (std::chrono::steady_clock::now() < end) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    ++samples;
-    if (engine.tool().in_contact) ++touching;
-  }
-  stop.store(true);
-  const ToolTelemetry after = engine.tool();
-  std::printf("| %-26s | %5zu |", label.c_str(), obj.mesh.tets.size());
-  Print(s.period);
-  Print(s.work);
-  std::printf(" %6llu %6llu %7llu | %5llu %4llu %4llu | %3.0f%% | %4llu %3llu |\n",
-              (unsigned long long)(s.late_ticks.load() - late0),
-              (unsigned long long)(s.overruns.load() - over0),
-              (unsigned long long)(s.skipped_ticks.load() - skipped0),
-              (unsigned long long)(after.deadline_misses - before.deadline_misses),
-              (unsigned long long)(after.watchdog_trips - before.watchdog_trips),
-              (unsigned long long)(after.device_errors - before.device_errors),
-              100.0 * touching / std::max<uint64_t>(samples, 1), (unsigned long long)frames.load(),
-              (unsigned long long)jobs.load());
-  for (auto& t : load) t.join();
-  hub.Stop();
+  Measure(engine, strokes, loaded, seconds, label, obj.mesh.tets.size(), /*device=*/true);
   engine.Stop();
   (*link)->Shutdown();
   return 0;
