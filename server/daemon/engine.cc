@@ -104,6 +104,8 @@ void Engine::Apply(const Command& c) {
     }
     case Command::Type::kSetParameters: {
       int i = FindSlot(c.instance_id);
+      // The passes over the elements were done by SimObject::Prepare on the service's thread;
+      // this copies the result in without allocating.
       if (i >= 0 && c.params) (void)slots_[i].object->SetParameters(*c.params);
       Retire({nullptr, c.params});
       break;

@@ -39,7 +39,7 @@ struct Command {
     kStep,
     kAddObject,        // object: ownership passes to the loop
     kRemoveObject,     // instance_id
-    kSetParameters,    // instance_id, params: copied into the object, then retired
+    kSetParameters,    // instance_id, params (prepared off the loop): applied, then retired
     kDeviceCalibrate,  // the device link calibrates on the loop thread
     kDeviceClear,      // clear an emergency stop and latched faults
     kSetToolOrigin,    // vec: scene position of the device frame's origin [m]
@@ -48,7 +48,7 @@ struct Command {
   uint64_t seq = 0;  // assigned by Engine::Submit; the loop acknowledges it in applied_seq
   uint32_t instance_id = 0;
   sim::SimObject* object = nullptr;
-  sim::Parameters* params = nullptr;
+  sim::PreparedParameters* params = nullptr;
   ObjectContact* contact = nullptr;  // kAddObject: ownership passes to the loop (may be null)
   std::array<double, 3> vec{};       // kSetToolOrigin [m]
 };
@@ -56,7 +56,7 @@ struct Command {
 /// Memory the loop no longer uses, to be freed by another thread.
 struct Retired {
   sim::SimObject* object = nullptr;
-  sim::Parameters* params = nullptr;
+  sim::PreparedParameters* params = nullptr;  // holds the object's previous tet flags
   ObjectContact* contact = nullptr;
 };
 

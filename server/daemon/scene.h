@@ -11,6 +11,7 @@
 
 #include "common/geometry.h"
 #include "sim/params.h"
+#include "sim/sim.h"
 
 namespace rheo::daemon {
 
@@ -23,6 +24,10 @@ struct SceneEntry {
   std::vector<uint32_t> triangles;  // surface, 3 per triangle
   uint32_t vertex_count = 0;
   Vec3 position = Vec3::Zero();  // centre of the rest shape [m]
+  // The loop's object, for SimObject::Prepare only (const, reads what the loop never writes).
+  // Owned by the loop; valid while this entry is in the registry, and used only under the
+  // registry's mutation mutex, which RemoveFromScene also holds.
+  const sim::SimObject* object = nullptr;
 };
 
 /// Mutex-protected; never touched by the loop.

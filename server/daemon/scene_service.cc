@@ -155,6 +155,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   entry->params = params;
   entry->vertex_count = static_cast<uint32_t>(n);
   entry->position = target;
+  entry->object = object.get();
   entry->triangles.reserve(stored->mesh.surface.size() * 3);
   for (const auto& f : stored->mesh.surface)
     for (int32_t v : f) entry->triangles.push_back(static_cast<uint32_t>(v));
@@ -222,11 +223,16 @@ grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
       return ToGrpc(s.error());
     updated.push_back(std::move(next));
   }
+  const double tick = static_cast<double>(ctx_.engine->loop().options().period_ns) * 1e-9;
   for (auto& next : updated) {
+    // What the parameters imply (the step bound, the shape springs' split) is worked out here,
+    // not on the loop: it takes passes over every element (8 ms for 19k tets).
+    auto prepared = next->object->Prepare(next->params, next->integrator, tick);
+    if (!prepared.ok()) return ToGrpc(prepared.error());
     Command c;
     c.type = Command::Type::kSetParameters;
     c.instance_id = next->instance_id;
-    c.params = new sim::Parameters(next->params);
+    c.params = new sim::PreparedParameters(std::move(prepared).value());
     uint64_t seq = ctx_.engine->Submit(c);
     if (seq == 0) {
       delete c.params;

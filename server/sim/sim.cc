@@ -77,8 +77,18 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
 
 SimObject::SimObject(Model model, const Parameters& params, Integrator integrator)
     : model_(std::move(model)), params_(params), integrator_(integrator) {
+  unit_mass_.resize(model_.mass.size());
+  for (size_t i = 0; i < unit_mass_.size(); ++i) unit_mass_[i] = model_.mass[i] / params_.density;
   InitState(model_, params_.voigt_ratio, state_);
   UpdateDerived();
+}
+
+void SimObject::ApplyDensity(double density) {
+  for (int32_t i = 0; i < model_.num_nodes; ++i) {
+    model_.mass[i] = unit_mass_[i] * density;
+    model_.inv_mass[i] = model_.fixed[i] ? 0.0 : 1.0 / model_.mass[i];
+    for (int c = 0; c < 3; ++c) state_.mass3[3 * i + c] = model_.mass[i];
+  }
 }
 
 Result<std::unique_ptr<SimObject>> SimObject::Create(const TetMesh& mesh, const Parameters& params,
@@ -106,13 +116,7 @@ Status SimObject::SetParameter(std::string_view name, double value) {
   const double old_density = params_.density;
   const double old_ratio = params_.voigt_ratio;
   if (Status s = SetParameterByName(params_, name, value); !s.ok()) return s;
-  if (params_.density != old_density) {
-    const double scale = params_.density / old_density;
-    for (int32_t i = 0; i < model_.num_nodes; ++i) {
-      model_.mass[i] *= scale;
-      model_.inv_mass[i] = model_.fixed[i] ? 0.0 : 1.0 / model_.mass[i];
-    }
-  }
+  if (params_.density != old_density) ApplyDensity(params_.density);
   (void)old_ratio;  // the Voigt natural length follows voigt_ratio from the next step on
   UpdateDerived();
   Wake();
@@ -121,15 +125,56 @@ Status SimObject::SetParameter(std::string_view name, double value) {
 
 Status SimObject::SetParameters(const Parameters& params) {
   if (Status s = ValidateParameters(params); !s.ok()) return s;
-  const double scale = params.density / params_.density;
   params_ = params;
-  for (int32_t i = 0; i < model_.num_nodes; ++i) {
-    model_.mass[i] *= scale;
-    model_.inv_mass[i] = model_.fixed[i] ? 0.0 : 1.0 / model_.mass[i];
-  }
+  ApplyDensity(params_.density);
   UpdateDerived();
   Wake();
   return Status::Ok();
+}
+
+Result<PreparedParameters> SimObject::Prepare(const Parameters& params, Integrator integrator,
+                                              double dt) const {
+  if (Status s = ValidateParameters(params); !s.ok()) return s.error();
+  if (!(dt > 0.0) || !std::isfinite(dt)) return InvalidArgument("tick must be positive");
+  const auto n = static_cast<size_t>(model_.num_nodes);
+  const size_t nt = model_.tets.size();
+  PreparedParameters out;
+  out.params = params;
+  std::vector<double> mass(n);
+  for (size_t i = 0; i < n; ++i) mass[i] = unit_mass_[i] * params.density;
+  std::vector<Vec3> acc(n, Vec3::Zero());
+  out.h_stable = StableStep(params, mass, acc);
+  if (integrator == Integrator::kImplicitEuler) {
+    std::vector<double> rows(4 * nt), sorted(nt);
+    out.tet_implicit.assign(nt, 0);
+    out.shape_h = dt / ImplicitSubsteps(params, dt);
+    out.shape = DecideShape(params, out.shape_h, mass, acc, rows, sorted, out.tet_implicit,
+                            &out.implicit_tets);
+  }
+  return out;
+}
+
+Status SimObject::SetParameters(PreparedParameters& prepared) {
+  if (Status s = ValidateParameters(prepared.params); !s.ok()) return s;
+  params_ = prepared.params;
+  ApplyDensity(params_.density);
+  h_stable_ = prepared.h_stable;
+  shape_checked_h_ = -1.0;
+  if (prepared.shape_h > 0.0 && prepared.tet_implicit.size() == state_.tet_implicit.size()) {
+    std::swap(state_.tet_implicit, prepared.tet_implicit);
+    shape_treatment_ = prepared.shape;
+    shape_implicit_tets_ = prepared.implicit_tets;
+    shape_checked_h_ = prepared.shape_h;
+  }
+  Wake();
+  return Status::Ok();
+}
+
+int32_t SimObject::ImplicitSubsteps(const Parameters& p, double dt) {
+  // The linearised step is stable for any h but not accurate for long ones: the springs'
+  // directions change within a step. Ticks over kMaxImplicitStep are split (offline runs).
+  return std::max(static_cast<int32_t>(p.implicit_substeps),
+                  static_cast<int32_t>(std::ceil(dt / kMaxImplicitStep - 1e-9)));
 }
 
 void SimObject::SetIntegrator(Integrator integrator) {
@@ -139,38 +184,44 @@ void SimObject::SetIntegrator(Integrator integrator) {
 }
 
 void SimObject::UpdateDerived() {
+  const int32_t n = model_.num_nodes;
+  for (int32_t i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      state_.mass3[3 * i + c] = model_.mass[i];
+      state_.keep3[3 * i + c] = model_.fixed[i] ? 0.0 : 1.0;
+    }
+  }
+  h_stable_ = StableStep(params_, model_.mass, state_.cg_r);
+  shape_checked_h_ = -1.0;
+}
+
+double SimObject::StableStep(const Parameters& p, std::span<const double> mass,
+                             std::vector<Vec3>& acc) const {
   // Explicit stability bound: Gershgorin on M^-1 K and M^-1 D, the rank-one volume term exactly.
   const Model& m = model_;
   const int32_t n = m.num_nodes;
-  const internal::ActiveTerms terms = internal::DecideTerms(m, params_);
-  for (int32_t i = 0; i < n; ++i) {
-    for (int c = 0; c < 3; ++c) {
-      state_.mass3[3 * i + c] = m.mass[i];
-      state_.keep3[3 * i + c] = m.fixed[i] ? 0.0 : 1.0;
-    }
-  }
+  const internal::ActiveTerms terms = internal::DecideTerms(m, p);
   // Symmetrically scaled Gershgorin bound on M^-1/2 K M^-1/2 (x) and M^-1/2 D M^-1/2 (y): a pair
   // (i, j) with coupling k adds k (1/m_i + 1/sqrt(m_i m_j)) to row i.
-  std::vector<Vec3>& acc = state_.cg_r;
   for (int32_t i = 0; i < n; ++i) acc[i].setZero();
   auto couple = [&](int32_t i, int32_t j, double k, double c) {
-    const double w = GershgorinShare(m.mass[i], m.mass[j], m.fixed[i], m.fixed[j], 1.0);
+    const double w = GershgorinShare(mass[i], mass[j], m.fixed[i], m.fixed[j], 1.0);
     acc[i].x() += k * w;
     acc[i].y() += c * w;
   };
   if (terms.edges) {
     // 1.5: the Voigt ratio a multiplies k_v and can grow beyond its rest value.
-    const double k = 1.5 * params_.k_v;
+    const double k = 1.5 * p.k_v;
     for (const auto& e : m.edges) {
       // With implicit_damping the edge dampers have no step bound (see integrators.cc).
-      const double c = params_.implicit_damping > 0.5 ? 0.0 : params_.c_v;
+      const double c = p.implicit_damping > 0.5 ? 0.0 : p.c_v;
       couple(e[0], e[1], k, c);
       couple(e[1], e[0], k, c);
     }
   }
   if (terms.area) {
     for (size_t f = 0; f < m.faces.size(); ++f) {
-      const double kf = FaceSpringStiffness(m, params_, f);
+      const double kf = FaceSpringStiffness(m, p, f);
       for (int32_t i : m.faces[f]) {
         for (int32_t j : m.faces[f]) couple(i, j, kf, 0.0);
       }
@@ -178,7 +229,7 @@ void SimObject::UpdateDerived() {
   }
   if (terms.tet_volume) {
     for (size_t t = 0; t < m.tets.size(); ++t) {
-      const double kt = TetSpringStiffness(m, params_, t);
+      const double kt = TetSpringStiffness(m, p, t);
       for (int32_t i : m.tets[t]) {
         for (int32_t j : m.tets[t]) couple(i, j, kt, 0.0);
       }
@@ -189,10 +240,10 @@ void SimObject::UpdateDerived() {
     omega2 = std::max(omega2, acc[i].x());
     lambda_c = std::max(lambda_c, acc[i].y());
   }
-  shape_checked_h_ = -1.0;
   if (terms.global_volume) {
-    // Rest-shape volume gradient; a_i = sum over faces of (b - a) x (c - a) / 6.
-    std::vector<Vec3>& g = state_.cg_z;
+    // Rest-shape volume gradient (in acc, no longer needed); a_i = sum over faces of
+    // (b - a) x (c - a) / 6.
+    std::vector<Vec3>& g = acc;
     for (int32_t i = 0; i < n; ++i) g[i].setZero();
     for (const auto& fc : m.faces) {
       const Vec3 gg = (m.rest_positions[fc[1]] - m.rest_positions[fc[0]])
@@ -201,17 +252,28 @@ void SimObject::UpdateDerived() {
       for (int32_t i : fc) g[i] += gg;
     }
     double sum = 0.0;
-    for (int32_t i = 0; i < n; ++i) sum += m.fixed[i] ? 0.0 : g[i].squaredNorm() / m.mass[i];
-    omega2 += 1.5 * params_.volume_k * sum;
-    lambda_c += params_.volume_c * sum;
+    for (int32_t i = 0; i < n; ++i) sum += m.fixed[i] ? 0.0 : g[i].squaredNorm() / mass[i];
+    omega2 += 1.5 * p.volume_k * sum;
+    lambda_c += p.volume_c * sum;
   }
   const double rate = std::sqrt(omega2) + lambda_c;
-  h_stable_ = rate > 0.0 ? 0.9 * 2.0 / rate : 1e30;
-  for (int32_t i = 0; i < n; ++i) state_.cg_r[i].setZero();
+  for (int32_t i = 0; i < n; ++i) acc[i].setZero();
+  return rate > 0.0 ? 0.9 * 2.0 / rate : 1e30;
 }
 
 ShapeTreatment SimObject::ShapeSpringsTreatment(double h) {
   if (h == shape_checked_h_) return shape_treatment_;
+  shape_treatment_ = DecideShape(params_, h, model_.mass, state_.cg_r, state_.tet_rows,
+                                 state_.tet_stiffness, state_.tet_implicit, &shape_implicit_tets_);
+  shape_checked_h_ = h;
+  return shape_treatment_;
+}
+
+ShapeTreatment SimObject::DecideShape(const Parameters& p, double h, std::span<const double> mass,
+                                      std::vector<Vec3>& acc, std::vector<double>& rows,
+                                      std::vector<double>& sorted,
+                                      std::vector<uint8_t>& tet_implicit,
+                                      int32_t* implicit_tets_out) const {
   // In the implicit step the shape springs' forces meet the system matrix M + h D + h^2 K, not M:
   // Gershgorin on M_h^-1/2 K_shape M_h^-1/2 with M_h = M + h D_min (D_min the edge dampers at
   // their least effective viscosity, lumped per node) must stay within half the explicit limit,
@@ -221,12 +283,12 @@ ShapeTreatment SimObject::ShapeSpringsTreatment(double h) {
   const Model& m = model_;
   const int32_t n = m.num_nodes;
   const size_t nt = m.tets.size();
-  const internal::ActiveTerms terms = internal::DecideTerms(m, params_);
-  std::vector<Vec3>& acc = state_.cg_r;  // x: effective mass, y: row sum
-  for (int32_t i = 0; i < n; ++i) acc[i] = Vec3(m.mass[i], 0.0, 0.0);
+  const internal::ActiveTerms terms = internal::DecideTerms(m, p);
+  // acc: x the effective mass, y the row sum.
+  for (int32_t i = 0; i < n; ++i) acc[i] = Vec3(mass[i], 0.0, 0.0);
   if (terms.edges) {
-    const double c_low = DamperViscosity(params_, terms.nonlinear_damper ? params_.f_max : 0.0);
-    const double c_eff = c_low * params_.c_v / (c_low + params_.c_v);
+    const double c_low = DamperViscosity(p, terms.nonlinear_damper ? p.f_max : 0.0);
+    const double c_eff = c_low * p.c_v / (c_low + p.c_v);
     for (const auto& e : m.edges) {
       acc[e[0]].x() += h * c_eff;
       acc[e[1]].x() += h * c_eff;
@@ -236,19 +298,18 @@ ShapeTreatment SimObject::ShapeSpringsTreatment(double h) {
   auto coupling = [&](int32_t i, int32_t j, double k) {
     return GershgorinShare(acc[i].x(), acc[j].x(), m.fixed[i], m.fixed[j], k);
   };
-  auto tet_k = [&](size_t t) { return TetSpringStiffness(m, params_, t); };
+  auto tet_k = [&](size_t t) { return TetSpringStiffness(m, p, t); };
   // The faces' row sums (y), and each tet's share of its four nodes' rows (tet_rows), once; the
   // bisection below then only adds shares (this runs on the loop thread after a parameter
   // change, so it is kept to a few passes over the tets).
   if (terms.area) {
     for (size_t f = 0; f < m.faces.size(); ++f) {
-      const double kf = FaceSpringStiffness(m, params_, f);
+      const double kf = FaceSpringStiffness(m, p, f);
       for (int32_t i : m.faces[f]) {
         for (int32_t j : m.faces[f]) acc[i].y() += coupling(i, j, kf);
       }
     }
   }
-  std::vector<double>& rows = state_.tet_rows;
   if (terms.tet_volume) {
     for (size_t t = 0; t < nt; ++t) {
       const double kt = tet_k(t);
@@ -279,7 +340,6 @@ ShapeTreatment SimObject::ShapeSpringsTreatment(double h) {
       result = ShapeTreatment::kImplicit;
       implicit_tets = static_cast<int32_t>(nt);
     } else {
-      std::vector<double>& sorted = state_.tet_stiffness;
       for (size_t t = 0; t < nt; ++t) sorted[t] = tet_k(t);
       std::sort(sorted.begin(), sorted.end());
       size_t lo = 0, hi = nt;  // bound holds with the first lo tets explicit, not with hi
@@ -289,16 +349,14 @@ ShapeTreatment SimObject::ShapeSpringsTreatment(double h) {
       }
       const double k_max = lo > 0 ? sorted[lo - 1] : -1.0;
       for (size_t t = 0; t < nt; ++t) {
-        state_.tet_implicit[t] = tet_k(t) > k_max ? 1 : 0;
-        implicit_tets += state_.tet_implicit[t];
+        tet_implicit[t] = tet_k(t) > k_max ? 1 : 0;
+        implicit_tets += tet_implicit[t];
       }
       result = ShapeTreatment::kSplit;
     }
   }
   for (int32_t i = 0; i < n; ++i) acc[i].setZero();
-  shape_checked_h_ = h;
-  shape_treatment_ = result;
-  shape_implicit_tets_ = implicit_tets;
+  *implicit_tets_out = implicit_tets;
   return result;
 }
 
@@ -423,10 +481,7 @@ StepResult SimObject::Step(double dt) {
       internal::SymplecticEulerSubstep(model_, params_, terms, state_, h, dt);
     }
   } else {
-    // The linearised step is stable for any h but not accurate for long ones: the springs'
-    // directions change within a step. Ticks over kMaxImplicitStep are split (offline runs).
-    substeps = std::max(static_cast<int32_t>(params_.implicit_substeps),
-                        static_cast<int32_t>(std::ceil(dt / kMaxImplicitStep - 1e-9)));
+    substeps = ImplicitSubsteps(params_, dt);
     const double h = dt / substeps;
     // The shape springs (eqs. 5-6) are soft next to the edges: within their own explicit bound
     // they stay out of the linear system, which then holds the edges and the rank-one volume term

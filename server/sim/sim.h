@@ -13,6 +13,7 @@
 #include <memory>
 #include <span>
 #include <string_view>
+#include <vector>
 
 #include "common/geometry.h"
 #include "common/status.h"
@@ -64,6 +65,19 @@ struct Diagnostics {
 /// stiffest tets in the linear system and the rest explicit, or all in the linear system.
 enum class ShapeTreatment { kExplicit, kSplit, kImplicit };
 
+/// A parameter set with what it implies for one object's steps: the explicit step bound and the
+/// implicit integrator's shape-spring treatment at its substep. SimObject::Prepare computes it
+/// (passes over every element; allocates) so that the thread that steps the object only copies
+/// it in (SetParameters(PreparedParameters&)).
+struct PreparedParameters {
+  Parameters params;
+  double h_stable = 0.0;  // explicit stability bound on the substep [s]
+  double shape_h = -1.0;  // substep the shape treatment was decided for [s]; -1: not decided
+  ShapeTreatment shape = ShapeTreatment::kImplicit;
+  int32_t implicit_tets = 0;
+  std::vector<uint8_t> tet_implicit;  // per tet, 1 in the linear system (kSplit)
+};
+
 class SimObject {
  public:
   /// Builds model and state from a mesh (allocates). Fails on a bad mesh or parameters.
@@ -77,7 +91,18 @@ class SimObject {
   /// Sets one parameter by name, validated (INVALID_ARGUMENT names it and its range). Takes
   /// effect on the next Step and wakes the object. Does not allocate.
   Status SetParameter(std::string_view name, double value);
+  /// Validates and applies `params`, recomputing what they imply (passes over every element).
   Status SetParameters(const Parameters& params);
+  /// What `params` imply for this object stepped with `integrator` at ticks of `dt` (validated;
+  /// INVALID_ARGUMENT names a bad parameter). Const, allocates; it may run on another thread
+  /// while the object steps: it reads only the topology, the rest shape and the fixed nodes
+  /// (do not call SetFixed meanwhile).
+  Result<PreparedParameters> Prepare(const Parameters& params, Integrator integrator,
+                                     double dt) const;
+  /// Applies a prepared set without allocating: its tet flags are swapped in, so `prepared`
+  /// keeps the old ones (free it on another thread). A decision for another substep than the
+  /// next Step's is redone there.
+  Status SetParameters(PreparedParameters& prepared);
   void SetIntegrator(Integrator integrator);
 
   /// Advances one tick of dt seconds (substeps inside). Never allocates.
@@ -123,6 +148,21 @@ class SimObject {
  private:
   SimObject(Model model, const Parameters& params, Integrator integrator);
   void UpdateDerived();
+  // Node masses from unit_mass_ at `density` (no allocation).
+  void ApplyDensity(double density);
+  // Implicit substeps per tick of dt.
+  static int32_t ImplicitSubsteps(const Parameters& p, double dt);
+  // The explicit stability bound on the substep with node masses `mass` [s]; `acc` is scratch
+  // (n entries, left zero).
+  double StableStep(const Parameters& p, std::span<const double> mass,
+                    std::vector<Vec3>& acc) const;
+  // The shape springs' treatment at substep h with node masses `mass`: returns it, and fills
+  // tet_implicit (kSplit) and implicit_tets. acc (n), rows (4 per tet) and sorted (1 per tet)
+  // are scratch.
+  ShapeTreatment DecideShape(const Parameters& p, double h, std::span<const double> mass,
+                             std::vector<Vec3>& acc, std::vector<double>& rows,
+                             std::vector<double>& sorted, std::vector<uint8_t>& tet_implicit,
+                             int32_t* implicit_tets) const;
   void SaveGood();
   /// After a teleport, restore, reset, sleep or integrator change.
   void ForgetHistory();
@@ -130,6 +170,7 @@ class SimObject {
   bool CheckState() const;
 
   Model model_;
+  std::vector<double> unit_mass_;  // node mass per unit density [m^3]; fixed after build
   Parameters params_;
   Integrator integrator_;
   State state_;

@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "daemon/frame_hub.h"
+#include "sim/primitives.h"
+#include "sim/sim.h"
 
 namespace rheo::daemon {
 namespace {
@@ -63,6 +65,47 @@ TEST(Engine, PauseStopsTimeAndStepAdvancesOneTick) {
   Command none;
   ASSERT_TRUE(engine.WaitApplied(engine.Submit(none), 5'000'000'000));
   EXPECT_NEAR(engine.sim_time() - t0, 1e-3, 1e-12);
+  engine.Stop();
+}
+
+// Parameter changes are prepared on the caller's thread while the loop steps the same object
+// (SimObject::Prepare is const and reads only what the loop never writes), then applied by the
+// loop. Under TSan this is the check that the two do not race.
+TEST(Engine, ParametersPreparedWhileTheLoopStepsTheObject) {
+  Engine engine(TestOptions());
+  engine.Start();
+  auto mesh = sim::MakeBoxTetMesh(4, 3, 3, Vec3(0.04, 0.03, 0.03));
+  ASSERT_TRUE(mesh.ok());
+  sim::Parameters params = sim::FindPreset("organ")->params;
+  auto made = sim::SimObject::Create(*mesh, params, sim::Integrator::kImplicitEuler);
+  ASSERT_TRUE(made.ok());
+  const sim::SimObject* object = made->get();
+  Command add;
+  add.type = Command::Type::kAddObject;
+  add.instance_id = 1;
+  add.object = made->release();
+  ASSERT_TRUE(engine.WaitApplied(engine.Submit(add), 5'000'000'000));
+  for (int k = 0; k < 20; ++k) {
+    params.k_v = 150.0 + 10.0 * k;
+    params.tet_k = 0.1 * (1 + k % 4);
+    params.density = 900.0 + 10.0 * k;
+    auto prepared = object->Prepare(params, sim::Integrator::kImplicitEuler, 1e-3);
+    ASSERT_TRUE(prepared.ok()) << prepared.error().message;
+    Command c;
+    c.type = Command::Type::kSetParameters;
+    c.instance_id = 1;
+    c.params = new sim::PreparedParameters(std::move(prepared).value());
+    const uint64_t seq = engine.Submit(c);
+    ASSERT_NE(seq, 0u);
+    ASSERT_TRUE(engine.WaitApplied(seq, 5'000'000'000));
+    engine.DrainRetired();
+  }
+  Command pause;
+  pause.type = Command::Type::kPause;
+  ASSERT_TRUE(engine.WaitApplied(engine.Submit(pause), 5'000'000'000));
+  EXPECT_EQ(object->parameters().k_v, params.k_v);
+  EXPECT_EQ(object->parameters().density, params.density);
+  for (const Vec3& x : object->positions()) ASSERT_TRUE(x.allFinite());
   engine.Stop();
 }
 
