@@ -45,8 +45,7 @@ Status UartMotorLink::Open(int num_motors) {
   return Status::Ok();
 }
 
-Status UartMotorLink::WriteCommand(const uart::BoardInfo& board,
-                                   std::span<const int16_t> command) {
+Status UartMotorLink::WriteCommand(const uart::BoardInfo& board, std::span<const int16_t> command) {
   std::array<uint8_t, uart::kMaxFrameSize> frame;
   const size_t n = uart::EncodeCurrentCommand(board.board_id, command, frame);
   return transport_->Write(std::span(frame.data(), n), reply_timeout_us_);

@@ -172,9 +172,12 @@ void Engine::Tick(const rt::TickInfo& info) {
       out[3 * k + 1] = static_cast<float>(x[k].y());
       out[3 * k + 2] = static_cast<float>(x[k].z());
     }
-    f.objects[f.object_count++] =
-        FrameObject{slots_[i].instance_id, first, static_cast<uint32_t>(x.size()), o.sleeping(),
-                    static_cast<uint64_t>(o.events().restores), o.kinetic_energy()};
+    f.objects[f.object_count++] = FrameObject{slots_[i].instance_id,
+                                              first,
+                                              static_cast<uint32_t>(x.size()),
+                                              o.sleeping(),
+                                              static_cast<uint64_t>(o.events().restores),
+                                              o.kinetic_energy()};
     first += static_cast<uint32_t>(x.size());
   }
   frames_.Publish();

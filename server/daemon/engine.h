@@ -112,8 +112,7 @@ class TickDevice {
   virtual ~TickDevice() = default;
   /// After the simulation step (which reads nothing from the device): exchange with the device,
   /// contact against `slots`, node forces for the next step, the device command; fills `out`.
-  virtual void Tick(const rt::TickInfo& info, std::span<EngineSlot> slots,
-                    ToolTelemetry* out) = 0;
+  virtual void Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, ToolTelemetry* out) = 0;
   /// Device commands (kDeviceCalibrate, kDeviceClear, kSetToolOrigin).
   virtual void Apply(const Command& command) = 0;
   /// The object in `slot` is leaving the loop: forget any pointer into it.
@@ -126,7 +125,7 @@ struct FrameObject {
   uint32_t first = 0;  // index of its first vertex in LoopFrame::positions / 3
   uint32_t vertex_count = 0;
   bool sleeping = false;
-  uint64_t restores = 0;  // recoveries from a non-finite or exploding state so far
+  uint64_t restores = 0;        // recoveries from a non-finite or exploding state so far
   double kinetic_energy = 0.0;  // [J]
 };
 

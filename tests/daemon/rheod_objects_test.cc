@@ -272,7 +272,8 @@ TEST(RheodScene, ObjectFallsAndStreamsTopologyOnceThenPositions) {
     // Each frame reports the object's volume (within 10 % of the mesh's while it falls and lands
     // on the organ preset), its kinetic energy, and no restores.
     const v1::ObjectState& o = got[i].objects(0);
-    EXPECT_NEAR(o.volume(), c.object.mesh().surface_volume(), 0.1 * c.object.mesh().surface_volume())
+    EXPECT_NEAR(o.volume(), c.object.mesh().surface_volume(),
+                0.1 * c.object.mesh().surface_volume())
         << "frame " << i;
     EXPECT_GE(o.kinetic_energy(), 0.0);
     EXPECT_EQ(o.restores(), 0u);
