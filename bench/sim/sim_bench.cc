@@ -393,6 +393,51 @@ int Precision(const std::string& svg) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// What a parameter change costs the thread that steps the object: the tick that applies it with
+// SetParameters(params) (everything on that thread, as `rheo simulate` does) and with a set
+// SimObject::Prepare made on another thread (as rheod does), next to a normal tick. Medians.
+int ParameterChange() {
+  std::printf("# parameter change (k_v), organ, implicit BDF2, 1 ms ticks; median us of 9\n");
+  std::printf("%8s %12s %18s %16s %18s\n", "tets", "normal tick", "tick + direct set",
+              "tick + prepared", "Prepare (off loop)");
+  for (int target : {5000, 20000}) {
+    const TetMesh mesh = BoxWithTets(target);
+    Parameters p = FindPreset("organ")->params;
+    auto obj = SimObject::Create(mesh, p, Integrator::kImplicitEuler);
+    if (!obj.ok()) return 2;
+    SimObject& s = **obj;
+    for (int k = 0; k < 50; ++k) s.Step(1e-3);
+    std::vector<double> normal, direct, prepared, prepare;
+    auto us_since = [](auto t0) {
+      return std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0)
+          .count();
+    };
+    for (int r = 0; r < 9; ++r) {
+      p.k_v = 150.0 + r;
+      auto t0 = std::chrono::steady_clock::now();
+      (void)s.SetParameters(p);
+      s.Step(1e-3);
+      direct.push_back(us_since(t0));
+      p.k_v = 160.0 + r;
+      t0 = std::chrono::steady_clock::now();
+      auto pr = s.Prepare(p, Integrator::kImplicitEuler, 1e-3);
+      prepare.push_back(us_since(t0));
+      if (!pr.ok()) return 2;
+      t0 = std::chrono::steady_clock::now();
+      (void)s.SetParameters(*pr);
+      s.Step(1e-3);
+      prepared.push_back(us_since(t0));
+      t0 = std::chrono::steady_clock::now();
+      s.Step(1e-3);
+      normal.push_back(us_since(t0));
+    }
+    std::printf("%8zu %12.0f %18.0f %16.0f %18.0f\n", mesh.tets.size(), Median(normal),
+                Median(direct), Median(prepared), Median(prepare));
+  }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------------------
 // The implicit integrator's CG tolerance against the error it costs (the default's justification).
 int CgSweep() {
   const double t_end = 0.5, dt = 1e-3;
@@ -559,6 +604,7 @@ int main(int argc, char** argv) {
   const std::string mode = argc > 1 ? argv[1] : "speed";
   if (mode == "speed") return Speed(argc > 2 ? std::atoi(argv[2]) : 100000);
   if (mode == "cg") return CgSweep();
+  if (mode == "params") return ParameterChange();
   if (mode == "kernels") return Kernels(argc > 2 ? std::atoi(argv[2]) : 5000);
   if (mode == "precision") return Precision(argc > 2 ? argv[2] : "sim_work_precision.svg");
 #ifdef RHEO_HAVE_BULLET
@@ -583,6 +629,8 @@ int main(int argc, char** argv) {
     return 1;
   }
 #endif
-  std::fprintf(stderr, "usage: sim_bench speed [max_tets] | precision [svg] | bullet\n");
+  std::fprintf(stderr,
+               "usage: sim_bench speed [max_tets] | kernels [tets] | precision [svg] | cg | "
+               "params | bullet\n");
   return 1;
 }
