@@ -3,6 +3,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
+#include <sys/prctl.h>
 #include <time.h>
 
 #include <cerrno>
@@ -51,6 +52,11 @@ void Loop::Stop() {
 
 void Loop::SetUpThread() {
   pthread_setname_np(pthread_self(), "rheo-loop");
+  // A normal-priority thread's timed sleeps may end up to 50 us late by default (timer slack);
+  // 1 ns asks for the deadline itself. SCHED_FIFO threads have no slack anyway. On the
+  // development machine the median wake latency of a normal-priority 1 kHz sleep went from 139
+  // to 68 us, the machine's own timer latency.
+  if (prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL) != 0) env_.notes += "timer slack unchanged; ";
   if (options_.lock_memory) {
     if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
       env_.memory_locked = true;
