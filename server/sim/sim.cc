@@ -87,7 +87,15 @@ void SimObject::ApplyDensity(double density) {
   for (int32_t i = 0; i < model_.num_nodes; ++i) {
     model_.mass[i] = unit_mass_[i] * density;
     model_.inv_mass[i] = model_.fixed[i] ? 0.0 : 1.0 / model_.mass[i];
-    for (int c = 0; c < 3; ++c) state_.mass3[3 * i + c] = model_.mass[i];
+  }
+}
+
+void SimObject::SyncNodeArrays() {
+  for (int32_t i = 0; i < model_.num_nodes; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      state_.mass3[3 * i + c] = model_.mass[i];
+      state_.keep3[3 * i + c] = model_.fixed[i] ? 0.0 : 1.0;
+    }
   }
 }
 
@@ -114,10 +122,9 @@ Result<std::unique_ptr<SimObject>> SimObject::Create(Model model, const Paramete
 
 Status SimObject::SetParameter(std::string_view name, double value) {
   const double old_density = params_.density;
-  const double old_ratio = params_.voigt_ratio;
   if (Status s = SetParameterByName(params_, name, value); !s.ok()) return s;
   if (params_.density != old_density) ApplyDensity(params_.density);
-  (void)old_ratio;  // the Voigt natural length follows voigt_ratio from the next step on
+  // A new voigt_ratio moves the Voigt natural length from the next step on; nothing to redo.
   UpdateDerived();
   Wake();
   return Status::Ok();
@@ -158,6 +165,7 @@ Status SimObject::SetParameters(PreparedParameters& prepared) {
   if (Status s = ValidateParameters(prepared.params); !s.ok()) return s;
   params_ = prepared.params;
   ApplyDensity(params_.density);
+  SyncNodeArrays();
   h_stable_ = prepared.h_stable;
   shape_checked_h_ = -1.0;
   if (prepared.shape_h > 0.0 && prepared.tet_implicit.size() == state_.tet_implicit.size()) {
@@ -184,13 +192,7 @@ void SimObject::SetIntegrator(Integrator integrator) {
 }
 
 void SimObject::UpdateDerived() {
-  const int32_t n = model_.num_nodes;
-  for (int32_t i = 0; i < n; ++i) {
-    for (int c = 0; c < 3; ++c) {
-      state_.mass3[3 * i + c] = model_.mass[i];
-      state_.keep3[3 * i + c] = model_.fixed[i] ? 0.0 : 1.0;
-    }
-  }
+  SyncNodeArrays();
   h_stable_ = StableStep(params_, model_.mass, state_.cg_r);
   shape_checked_h_ = -1.0;
 }
@@ -299,9 +301,9 @@ ShapeTreatment SimObject::DecideShape(const Parameters& p, double h, std::span<c
     return GershgorinShare(acc[i].x(), acc[j].x(), m.fixed[i], m.fixed[j], k);
   };
   auto tet_k = [&](size_t t) { return TetSpringStiffness(m, p, t); };
-  // The faces' row sums (y), and each tet's share of its four nodes' rows (tet_rows), once; the
-  // bisection below then only adds shares (this runs on the loop thread after a parameter
-  // change, so it is kept to a few passes over the tets).
+  // The faces' row sums (y), and each tet's share of its four nodes' rows (rows), once; the
+  // bisection below then only adds shares, so the whole decision is a few passes over the tets
+  // (it still runs on the stepping thread when the substep changes or SetParameter is used).
   if (terms.area) {
     for (size_t f = 0; f < m.faces.size(); ++f) {
       const double kf = FaceSpringStiffness(m, p, f);

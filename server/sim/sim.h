@@ -150,6 +150,8 @@ class SimObject {
   void UpdateDerived();
   // Node masses from unit_mass_ at `density` (no allocation).
   void ApplyDensity(double density);
+  // The CG's per-coordinate copies of the node masses and fixed flags (mass3, keep3).
+  void SyncNodeArrays();
   // Implicit substeps per tick of dt.
   static int32_t ImplicitSubsteps(const Parameters& p, double dt);
   // The explicit stability bound on the substep with node masses `mass` [s]; `acc` is scratch
