@@ -572,22 +572,129 @@ RHEO_SIM_KERNEL void EdgeJacobian(const Model& m, const State& s, const double* 
     EdgeJacobianT<false>(m, s, a, b, out);
 }
 
+// out += the edge blocks' product: y = G (a_i - a_j) to node i, -G^T (a_i - a_j) to node j, node
+// i's sum kept in registers over its run of edges (as in EdgeJacobianT).
+RHEO_SIM_KERNEL void EdgeBlockJacobian(const Model& m, const State& s, const double* a,
+                                       double* out) {
+  const size_t ne = m.edges.size();
+  const int32_t* E = m.edges.data()->data();
+  const float* G = s.edge_block.data();
+  int32_t cur = -1;
+  double ax = 0.0, ay = 0.0, az = 0.0, sx = 0.0, sy = 0.0, sz = 0.0;
+  for (size_t k = 0; k < ne; ++k) {
+    const int32_t i = E[2 * k], j = E[2 * k + 1];
+    if (i != cur) {
+      if (cur >= 0) {
+        out[3 * cur] += sx;
+        out[3 * cur + 1] += sy;
+        out[3 * cur + 2] += sz;
+      }
+      cur = i;
+      ax = a[3 * i];
+      ay = a[3 * i + 1];
+      az = a[3 * i + 2];
+      sx = sy = sz = 0.0;
+    }
+    const double dx = ax - a[3 * j], dy = ay - a[3 * j + 1], dz = az - a[3 * j + 2];
+    double g[9];
+    for (int c = 0; c < 9; ++c) g[c] = G[9 * k + c];
+    sx += g[0] * dx + g[1] * dy + g[2] * dz;
+    sy += g[3] * dx + g[4] * dy + g[5] * dz;
+    sz += g[6] * dx + g[7] * dy + g[8] * dz;
+    out[3 * j] -= g[0] * dx + g[3] * dy + g[6] * dz;
+    out[3 * j + 1] -= g[1] * dx + g[4] * dy + g[7] * dz;
+    out[3 * j + 2] -= g[2] * dx + g[5] * dy + g[8] * dz;
+  }
+  if (cur >= 0) {
+    out[3 * cur] += sx;
+    out[3 * cur + 1] += sy;
+    out[3 * cur + 2] += sz;
+  }
+}
+
+// out += the rank-one global volume term's product.
+void GlobalVolumeJacobian(const Model& m, const State& s, std::span<const Vec3> a,
+                          std::span<const Vec3> b, std::span<Vec3> out) {
+  const int32_t n = m.num_nodes;
+  double dot_a = 0.0, dot_b = 0.0;
+  for (int32_t i = 0; i < n; ++i) {
+    dot_a += s.vol_grad[i].dot(a[i]);
+    dot_b += s.vol_grad[i].dot(b[i]);
+  }
+  const double c = s.global_k * dot_a + s.global_c * dot_b;
+  for (int32_t i = 0; i < n; ++i) out[i] += c * s.vol_grad[i];
+}
+
+constexpr int kTetPairs[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+constexpr int kFacePairs[3][2] = {{0, 1}, {0, 2}, {1, 2}};
+
+// g -= coef w_q w_r^T for list entry `entry` (model.h) of an element whose corner directions are
+// w (3 per corner): q is the corner at the edge's first node.
+template <typename W>
+inline void SubtractPairBlock(int32_t entry, const int (*pairs)[2], double coef, const W* w,
+                              double g[9]) {
+  const int p = (entry >> 1) & 7, f = entry & 1;
+  const W* wq = w + 3 * pairs[p][f];
+  const W* wr = w + 3 * pairs[p][1 - f];
+  for (int r = 0; r < 3; ++r) {
+    const double cr = coef * double(wq[r]);
+    for (int c = 0; c < 3; ++c) g[3 * r + c] -= cr * double(wr[c]);
+  }
+}
+
 }  // namespace
+
+// Each edge's block is gathered from its elements and written once (a scatter from the elements
+// read and wrote every block about five times).
+RHEO_SIM_KERNEL void AssembleEdgeBlocks(const Model& m, const ActiveTerms& terms, State& s) {
+  const size_t ne = m.edges.size();
+  float* G = s.edge_block.data();
+  const int32_t* ts = m.edge_tet_start.data();
+  const int32_t* tl = m.edge_tet.data();
+  const int32_t* fs = m.edge_face_start.data();
+  const int32_t* fl = m.edge_face.data();
+  for (size_t k = 0; k < ne; ++k) {
+    double g[9] = {};
+    if (terms.edges) {
+      const double e[3] = {s.edge_ex[k], s.edge_ey[k], s.edge_ez[k]};
+      const double axial = s.edge_axial_k[k] - s.edge_lateral[k] + s.edge_axial_c[k];
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) g[3 * r + c] = axial * e[r] * e[c];
+        g[4 * r] += s.edge_lateral[k];
+      }
+    }
+    if (terms.tet_volume) {
+      for (int32_t q = ts[k]; q < ts[k + 1]; ++q) {
+        const int32_t t = tl[q] >> 4;
+        const double coef = s.tet_coef[t];
+        if (coef != 0.0) SubtractPairBlock(tl[q], kTetPairs, coef, &s.tet_w[12 * t], g);
+      }
+    }
+    if (terms.area) {
+      for (int32_t q = fs[k]; q < fs[k + 1]; ++q) {
+        const int32_t f = fl[q] >> 4;
+        const double coef = s.shape_coef[f];
+        if (coef != 0.0) SubtractPairBlock(fl[q], kFacePairs, coef, s.shape_dir[3 * f].data(), g);
+      }
+    }
+    for (int c = 0; c < 9; ++c) G[9 * k + c] = static_cast<float>(g[c]);
+  }
+}
+
+void ApplyAssembled(const Model& m, const ActiveTerms& terms, const State& s,
+                    std::span<const Vec3> a, std::span<Vec3> out) {
+  const int32_t n = m.num_nodes;
+  for (int32_t i = 0; i < n; ++i) out[i].setZero();
+  EdgeBlockJacobian(m, s, a.data()->data(), out.data()->data());
+  if (terms.global_volume) GlobalVolumeJacobian(m, s, a, a, out);
+}
 
 void ApplyJacobian(const Model& m, const ActiveTerms& terms, const State& s,
                    std::span<const Vec3> a, std::span<const Vec3> b, std::span<Vec3> out) {
   const int32_t n = m.num_nodes;
   for (int32_t i = 0; i < n; ++i) out[i].setZero();
   if (terms.edges) EdgeJacobian(m, s, a.data()->data(), b.data()->data(), out.data()->data());
-  if (terms.global_volume) {
-    double dot_a = 0.0, dot_b = 0.0;
-    for (int32_t i = 0; i < n; ++i) {
-      dot_a += s.vol_grad[i].dot(a[i]);
-      dot_b += s.vol_grad[i].dot(b[i]);
-    }
-    const double c = s.global_k * dot_a + s.global_c * dot_b;
-    for (int32_t i = 0; i < n; ++i) out[i] += c * s.vol_grad[i];
-  }
+  if (terms.global_volume) GlobalVolumeJacobian(m, s, a, b, out);
   // Eqs. 5-6 (Gauss-Newton blocks) have no damping part.
   if (terms.area) {
     const size_t nf = m.faces.size();

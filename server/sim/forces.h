@@ -59,6 +59,17 @@ void ComputeForces(const Model& model, const Parameters& params, const ActiveTer
 void ApplyJacobian(const Model& model, const ActiveTerms& terms, const State& state,
                    std::span<const Vec3> a, std::span<const Vec3> b, std::span<Vec3> out);
 
+/// Fills state.edge_block for the product of the system of the terms on in `terms` (edges,
+/// global volume aside): each edge's block K_e + D_e, plus the Gauss-Newton blocks of the area and
+/// volume springs that ComputeForces stored (eqs. 5-6), each added to the edges joining its nodes.
+/// A spring's block sigma w w^T acts on differences across node pairs (its w sum to zero), so the
+/// product becomes one pass over the edges. Needs model.edge_tet_start (model.h).
+void AssembleEdgeBlocks(const Model& model, const ActiveTerms& terms, State& state);
+
+/// out = ApplyJacobian(terms, a, a) from the blocks AssembleEdgeBlocks stored (up to rounding).
+void ApplyAssembled(const Model& model, const ActiveTerms& terms, const State& state,
+                    std::span<const Vec3> a, std::span<Vec3> out);
+
 /// Volume enclosed by the boundary faces [m^3].
 double EnclosedVolume(const Model& model, std::span<const Vec3> x);
 

@@ -173,9 +173,17 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   }
   const size_t n3 = 3 * static_cast<size_t>(n);
   auto flat = [](std::vector<Vec3>& v) { return v.data()->data(); };
+  // With shape springs in the system, their blocks join the edges' (AssembleEdgeBlocks): one pass
+  // over the edges per product instead of one over the edges and one over the elements (at 103k
+  // tets with 69k of them in the system, CPU time per tick falls by a third).
+  const bool assembled = (jac.area || jac.tet_volume) && !m.edge_tet_start.empty();
+  if (assembled) AssembleEdgeBlocks(m, jac, s);
   // out = A in (rows of fixed nodes zero); returns in . out.
   auto apply_a = [&](std::vector<Vec3>& in, std::vector<Vec3>& out) {
-    ApplyJacobian(m, jac, s, in, in, out);
+    if (assembled)
+      ApplyAssembled(m, jac, s, in, out);
+    else
+      ApplyJacobian(m, jac, s, in, in, out);
     return FinishProduct(n3, s.keep3.data(), s.mass3.data(), flat(in), flat(out));
   };
   // The rest of the warm start's product (volume, implicit shape springs) into cg_z.

@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <span>
 #include <string>
 
 #include "common/tet_mesh_io.h"
@@ -12,6 +13,55 @@ namespace {
 
 double SignedTetVolume(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& p3) {
   return (p1 - p0).dot((p2 - p0).cross(p3 - p0)) / 6.0;
+}
+
+// Fills the edge -> element lists (model.h), or leaves them empty when some pair is not an edge.
+void FindElementEdges(Model& m) {
+  for (auto* v : {&m.edge_tet_start, &m.edge_tet, &m.edge_face_start, &m.edge_face}) v->clear();
+  // (lower node, higher node, edge index), sorted for lookup whatever the order of m.edges.
+  std::vector<std::array<int32_t, 3>> keys(m.edges.size());
+  for (size_t k = 0; k < m.edges.size(); ++k) {
+    const auto [i, j] = m.edges[k];
+    keys[k] = {std::min(i, j), std::max(i, j), static_cast<int32_t>(k)};
+  }
+  std::sort(keys.begin(), keys.end());
+  // Edge k of the pair (a, b) and whether it runs from b to a; k = -1 when it is not an edge.
+  auto find = [&](int32_t a, int32_t b, int32_t& flip) -> int32_t {
+    const std::array<int32_t, 3> key = {std::min(a, b), std::max(a, b), -1};
+    const auto it = std::lower_bound(keys.begin(), keys.end(), key);
+    if (it == keys.end() || (*it)[0] != key[0] || (*it)[1] != key[1]) return -1;
+    flip = m.edges[(*it)[2]][0] == a ? 0 : 1;
+    return (*it)[2];
+  };
+  // CSR lists of `elems` (each with `pairs` node pairs) by edge; false when a pair is not an edge.
+  auto build = [&](const auto& elems, std::span<const std::array<int, 2>> pairs,
+                   std::vector<int32_t>& start, std::vector<int32_t>& list) {
+    if (elems.size() >= (size_t{1} << 27)) return false;  // the entry would overflow
+    std::vector<std::array<int32_t, 2>> by_edge;          // (edge, entry)
+    by_edge.reserve(elems.size() * pairs.size());
+    for (size_t t = 0; t < elems.size(); ++t) {
+      for (size_t p = 0; p < pairs.size(); ++p) {
+        int32_t flip = 0;
+        const int32_t k = find(elems[t][pairs[p][0]], elems[t][pairs[p][1]], flip);
+        if (k < 0) return false;
+        by_edge.push_back({k, static_cast<int32_t>(16 * t + 2 * p) + flip});
+      }
+    }
+    std::sort(by_edge.begin(), by_edge.end());
+    start.assign(m.edges.size() + 1, 0);
+    for (const auto& [k, entry] : by_edge) ++start[k + 1];
+    for (size_t k = 0; k < m.edges.size(); ++k) start[k + 1] += start[k];
+    list.resize(by_edge.size());
+    for (size_t q = 0; q < by_edge.size(); ++q) list[q] = by_edge[q][1];
+    return true;
+  };
+  constexpr std::array<std::array<int, 2>, 6> kTetPairs = {
+      {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}};
+  constexpr std::array<std::array<int, 2>, 3> kFacePairs = {{{0, 1}, {0, 2}, {1, 2}}};
+  if (!build(m.tets, kTetPairs, m.edge_tet_start, m.edge_tet) ||
+      !build(m.faces, kFacePairs, m.edge_face_start, m.edge_face)) {
+    for (auto* v : {&m.edge_tet_start, &m.edge_tet, &m.edge_face_start, &m.edge_face}) v->clear();
+  }
 }
 
 // Finishes the geometric fields of a model whose nodes, masses, edges, faces and tets are set.
@@ -77,6 +127,7 @@ Status FinishModel(Model& m) {
     }
     m.tet_min_height[k] = max_face > 0 ? 3.0 * std::abs(vol) / max_face : 0.0;
   }
+  FindElementEdges(m);
   Eigen::AlignedBox3d box;
   for (const Vec3& p : m.rest_positions) box.extend(p);
   m.size = n > 0 ? box.diagonal().norm() : 0.0;

@@ -32,6 +32,14 @@ struct Model {
   std::vector<double> tet_rest_volume;       // (m) [m^3]
   std::vector<double> tet_min_height;        // smallest tet height (m) [m]
 
+  // The tets and faces at each edge, for the assembled product of the implicit system (CSR: edge
+  // k's entries are [start[k], start[k + 1])). An entry is 16 t + 2 p + f for element t's node pair
+  // p (tets 01 02 03 12 13 23, faces 01 02 12), f = 1 when the edge runs from the pair's second
+  // node to its first. All four empty when some pair is not an edge (only in a model built from
+  // parts).
+  std::vector<int32_t> edge_tet_start, edge_tet;
+  std::vector<int32_t> edge_face_start, edge_face;
+
   double rest_volume = 0.0;   // volume enclosed by the faces at rest [m^3]
   double size = 0.0;          // bounding-box diagonal at rest [m]
   int32_t inverted_tets = 0;  // tets with non-positive rest volume (kept; eq. 6 skips them)

@@ -29,10 +29,12 @@ struct State {
   std::vector<double> edge_axial_k;               // h^2 k_eff along the edge (e) [N s/m]
   std::vector<double> edge_axial_c;               // h c_eff along the edge (e) [N s/m]
   std::vector<double> edge_lateral;               // h^2 max(T,0)/l across the edge (e) [N s/m]
-  std::vector<double> shape_coef;                 // h^2 sigma per face (k) [N s/m]
-  std::vector<Vec3> shape_dir;                    // force directions, 3 per face (3k)
-  std::vector<float> tet_w;      // the same per tet, 12 in a row: [12 tet + 3 q + c] (12m)
-  std::vector<double> tet_coef;  // h^2 sigma per tet (m) [N s/m]
+  std::vector<float> edge_block;   // per edge, its row-major 3x3 block of the system with the
+                                   // shape springs' blocks added (9e; empty without edge_tet)
+  std::vector<double> shape_coef;  // h^2 sigma per face (k) [N s/m]
+  std::vector<Vec3> shape_dir;     // force directions, 3 per face (3k)
+  std::vector<float> tet_w;        // the same per tet, 12 in a row: [12 tet + 3 q + c] (12m)
+  std::vector<double> tet_coef;    // h^2 sigma per tet (m) [N s/m]
   // Per-tet split of the shape springs between the linear system and the explicit forces.
   bool tet_split = false;             // tet_implicit decides; else all tets alike
   std::vector<uint8_t> tet_implicit;  // 1 = in the linear system (m)
