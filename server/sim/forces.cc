@@ -572,38 +572,59 @@ RHEO_SIM_KERNEL void EdgeJacobian(const Model& m, const State& s, const double* 
     EdgeJacobianT<false>(m, s, a, b, out);
 }
 
-// out += the edge blocks' product: y = G (a_i - a_j) to node i, -G^T (a_i - a_j) to node j, node
+// out += the edge blocks' product: y = G (a_i - a_j) to node i, -G^T (a_i - a_j) to node j. In
+// blocks of kEdgeBlock edges: a scalar gather of the differences, the 3x3 products vectorised
+// across the block (the blocks are stored that way, component-major), a scalar scatter with node
 // i's sum kept in registers over its run of edges (as in EdgeJacobianT).
 RHEO_SIM_KERNEL void EdgeBlockJacobian(const Model& m, const State& s, const double* a,
                                        double* out) {
   const size_t ne = m.edges.size();
   const int32_t* E = m.edges.data()->data();
   const float* G = s.edge_block.data();
+  // d is zeroed once: the lanes past the last edge read it (their blocks are zero).
+  alignas(64) double d[3][kEdgeBlock] = {}, y[3][kEdgeBlock], z[3][kEdgeBlock];
   int32_t cur = -1;
-  double ax = 0.0, ay = 0.0, az = 0.0, sx = 0.0, sy = 0.0, sz = 0.0;
-  for (size_t k = 0; k < ne; ++k) {
-    const int32_t i = E[2 * k], j = E[2 * k + 1];
-    if (i != cur) {
-      if (cur >= 0) {
-        out[3 * cur] += sx;
-        out[3 * cur + 1] += sy;
-        out[3 * cur + 2] += sz;
+  double sx = 0.0, sy = 0.0, sz = 0.0;
+  for (size_t k0 = 0; k0 < ne; k0 += kEdgeBlock) {
+    const int nb = static_cast<int>(std::min<size_t>(kEdgeBlock, ne - k0));
+    int32_t gi = -1;
+    double ai[3] = {};
+    for (int l = 0; l < nb; ++l) {
+      const int32_t i = E[2 * (k0 + l)], j = E[2 * (k0 + l) + 1];
+      if (i != gi) {
+        gi = i;
+        for (int c = 0; c < 3; ++c) ai[c] = a[3 * i + c];
       }
-      cur = i;
-      ax = a[3 * i];
-      ay = a[3 * i + 1];
-      az = a[3 * i + 2];
-      sx = sy = sz = 0.0;
+      for (int c = 0; c < 3; ++c) d[c][l] = ai[c] - a[3 * j + c];
     }
-    const double dx = ax - a[3 * j], dy = ay - a[3 * j + 1], dz = az - a[3 * j + 2];
-    double g[9];
-    for (int c = 0; c < 9; ++c) g[c] = G[9 * k + c];
-    sx += g[0] * dx + g[1] * dy + g[2] * dz;
-    sy += g[3] * dx + g[4] * dy + g[5] * dz;
-    sz += g[6] * dx + g[7] * dy + g[8] * dz;
-    out[3 * j] -= g[0] * dx + g[3] * dy + g[6] * dz;
-    out[3 * j + 1] -= g[1] * dx + g[4] * dy + g[7] * dz;
-    out[3 * j + 2] -= g[2] * dx + g[5] * dy + g[8] * dz;
+    const float* g = G + 9 * k0;  // this block's 9 rows of kEdgeBlock
+#pragma omp simd
+    for (int l = 0; l < kEdgeBlock; ++l) {
+      double gl[9];
+      for (int c = 0; c < 9; ++c) gl[c] = g[c * kEdgeBlock + l];
+      for (int r = 0; r < 3; ++r) {
+        y[r][l] = gl[3 * r] * d[0][l] + gl[3 * r + 1] * d[1][l] + gl[3 * r + 2] * d[2][l];
+        z[r][l] = gl[r] * d[0][l] + gl[3 + r] * d[1][l] + gl[6 + r] * d[2][l];
+      }
+    }
+    for (int l = 0; l < nb; ++l) {
+      const int32_t i = E[2 * (k0 + l)], j = E[2 * (k0 + l) + 1];
+      if (i != cur) {
+        if (cur >= 0) {
+          out[3 * cur] += sx;
+          out[3 * cur + 1] += sy;
+          out[3 * cur + 2] += sz;
+        }
+        cur = i;
+        sx = sy = sz = 0.0;
+      }
+      sx += y[0][l];
+      sy += y[1][l];
+      sz += y[2][l];
+      out[3 * j] -= z[0][l];
+      out[3 * j + 1] -= z[1][l];
+      out[3 * j + 2] -= z[2][l];
+    }
   }
   if (cur >= 0) {
     out[3 * cur] += sx;
@@ -677,7 +698,8 @@ RHEO_SIM_KERNEL void AssembleEdgeBlocks(const Model& m, const ActiveTerms& terms
         if (coef != 0.0) SubtractPairBlock(fl[q], kFacePairs, coef, s.shape_dir[3 * f].data(), g);
       }
     }
-    for (int c = 0; c < 9; ++c) G[9 * k + c] = static_cast<float>(g[c]);
+    float* gk = G + 9 * (k - k % kEdgeBlock) + k % kEdgeBlock;
+    for (int c = 0; c < 9; ++c) gk[c * kEdgeBlock] = static_cast<float>(g[c]);
   }
 }
 

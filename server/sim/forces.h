@@ -59,6 +59,10 @@ void ComputeForces(const Model& model, const Parameters& params, const ActiveTer
 void ApplyJacobian(const Model& model, const ActiveTerms& terms, const State& state,
                    std::span<const Vec3> a, std::span<const Vec3> b, std::span<Vec3> out);
 
+/// Edges per group in state.edge_block: a group holds its edges' 3x3 blocks component by
+/// component (9 rows of kEdgeBlock floats), so that the product vectorises across edges.
+inline constexpr int kEdgeBlock = 16;
+
 /// Fills state.edge_block for the product of the system of the terms on in `terms` (edges,
 /// global volume aside): each edge's block K_e + D_e, plus the Gauss-Newton blocks of the area and
 /// volume springs that ComputeForces stored (eqs. 5-6), each added to the edges joining its nodes.

@@ -54,7 +54,9 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
   s.edge_axial_k.assign(ne, 0.0);
   s.edge_axial_c.assign(ne, 0.0);
   s.edge_lateral.assign(ne, 0.0);
-  s.edge_block.assign(m.edge_tet_start.empty() ? 0 : 9 * ne, 0.0f);
+  // Whole groups of internal::kEdgeBlock edges (forces.h).
+  const size_t groups = (ne + internal::kEdgeBlock - 1) / internal::kEdgeBlock;
+  s.edge_block.assign(m.edge_tet_start.empty() ? 0 : 9 * internal::kEdgeBlock * groups, 0.0f);
   s.shape_coef.assign(m.faces.size(), 0.0);
   s.shape_dir.assign(3 * m.faces.size(), Vec3::Zero());
   s.tet_w.assign(12 * m.tets.size(), 0.0f);

@@ -29,8 +29,9 @@ struct State {
   std::vector<double> edge_axial_k;               // h^2 k_eff along the edge (e) [N s/m]
   std::vector<double> edge_axial_c;               // h c_eff along the edge (e) [N s/m]
   std::vector<double> edge_lateral;               // h^2 max(T,0)/l across the edge (e) [N s/m]
-  std::vector<float> edge_block;   // per edge, its row-major 3x3 block of the system with the
-                                   // shape springs' blocks added (9e; empty without edge_tet)
+  // Per edge, its 3x3 block of the system with the shape springs' blocks added, in groups of
+  // kEdgeBlock edges (forces.h); empty without model.edge_tet.
+  std::vector<float> edge_block;
   std::vector<double> shape_coef;  // h^2 sigma per face (k) [N s/m]
   std::vector<Vec3> shape_dir;     // force directions, 3 per face (3k)
   std::vector<float> tet_w;        // the same per tet, 12 in a row: [12 tet + 3 q + c] (12m)
