@@ -57,7 +57,7 @@ inline void EdgeBlockProduct(double ex, double ey, double ez, double axial_k, do
 }
 
 RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlinear, State& s,
-                                double h, double a_step, bool linearise, const JacobianPass* jp) {
+                                double h, double a_step, bool linearise) {
   // The edge blocks of the implicit system are always written (see below); `linearise` only
   // says whether the diagonal damping of the explicit integrator is wanted instead.
   const bool diag_damping = !linearise && p.implicit_damping > 0.5;
@@ -85,17 +85,12 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
   alignas(64) double dxv[3][kBlock], dvv[3][kBlock], cd[kBlock], fx[kBlock], fy[kBlock], fz[kBlock],
       c_eff[kBlock];
   alignas(64) int32_t exact[kBlock];
-  // The fused Jacobian pass (jp): differences of its inputs across each edge, and its output.
-  alignas(64) double dav[3][kBlock], dbv[3][kBlock], yv[3][kBlock];
-  const double* Pa = jp != nullptr ? jp->a : nullptr;
-  const double* Pb = jp != nullptr ? jp->b : nullptr;
-  double* Py = jp != nullptr ? jp->out : nullptr;
   for (size_t k0 = 0; k0 < ne; k0 += kBlock) {
     const int nb = static_cast<int>(std::min<size_t>(kBlock, ne - k0));
     // Gather (scalar loads: hardware gathers are slower than this on common CPUs).
     // Node i's values are loaded once per run of edges that share it (edges are sorted by i).
     int32_t gi = -1;
-    double xi[3] = {}, vi[3] = {}, ai[3] = {}, bi[3] = {};
+    double xi[3] = {}, vi[3] = {};
     for (int l = 0; l < nb; ++l) {
       const size_t k = k0 + l;
       const int32_t i = E[2 * k], j = E[2 * k + 1];
@@ -104,21 +99,11 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
         for (int c = 0; c < 3; ++c) {
           xi[c] = X[3 * i + c];
           vi[c] = V[3 * i + c];
-          if (Py != nullptr) {
-            ai[c] = Pa[3 * i + c];
-            bi[c] = Pb[3 * i + c];
-          }
         }
       }
       for (int c = 0; c < 3; ++c) {
         dxv[c][l] = X[3 * j + c] - xi[c];
         dvv[c][l] = V[3 * j + c] - vi[c];
-      }
-      if (Py != nullptr) {
-        for (int c = 0; c < 3; ++c) {
-          dav[c][l] = ai[c] - Pa[3 * j + c];
-          dbv[c][l] = bi[c] - Pb[3 * j + c];
-        }
       }
       // Eq. 3 with the force of the previous substep; exp() only inside (f_min, f_max).
       double c_d = c_max;
@@ -168,35 +153,18 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
       exact[l] = (a_step > 0.0) & (L > 0.0) & !poly;
       A[k] = ((a_step > 0.0) & poly) ? a + (alpha - beta * a) * a_step * PhiPoly(x) : a;
     }
-    if (Py != nullptr) {
-      // EdgeJacobian's product on the blocks just computed, while they are in cache.
-#pragma omp simd
-      for (int l = 0; l < nb; ++l) {
-        const size_t k = k0 + l;
-        const double da[3] = {dav[0][l], dav[1][l], dav[2][l]};
-        const double eb = EX[k] * dbv[0][l] + EY[k] * dbv[1][l] + EZ[k] * dbv[2][l];
-        double y[3];
-        EdgeBlockProduct(EX[k], EY[k], EZ[k], AK[k], AC[k], AL[k], da, eb, y);
-        for (int c = 0; c < 3; ++c) yv[c][l] = y[c];
-      }
-    }
     // Node i's sum stays in registers over its run of edges (sorted by i; see EdgeJacobian).
     // The implicit system's Jacobi preconditioner gets trace/3 of each edge block (linearise),
     // the explicit integrator's implicit damping the effective viscosity (diag_damping).
     double* Dg = linearise ? s.diag.data() : diag_damping ? s.damp_diag.data() : nullptr;
     int32_t cur = E[2 * k0];
-    double sx = 0.0, sy = 0.0, sz = 0.0, sd = 0.0, yx = 0.0, yy = 0.0, yz = 0.0;
+    double sx = 0.0, sy = 0.0, sz = 0.0, sd = 0.0;
     // Adds node cur's sums to it.
     auto flush = [&] {
       F[3 * cur] += sx;
       F[3 * cur + 1] += sy;
       F[3 * cur + 2] += sz;
       if (Dg != nullptr) Dg[cur] += sd;
-      if (Py != nullptr) {
-        Py[3 * cur] += yx;
-        Py[3 * cur + 1] += yy;
-        Py[3 * cur + 2] += yz;
-      }
     };
     for (int l = 0; l < nb; ++l) {
       const size_t k = k0 + l;
@@ -204,15 +172,7 @@ RHEO_SIM_KERNEL void EdgeForces(const Model& m, const Parameters& p, bool nonlin
       if (i != cur) {
         flush();
         cur = i;
-        sx = sy = sz = sd = yx = yy = yz = 0.0;
-      }
-      if (Py != nullptr) {
-        yx += yv[0][l];
-        yy += yv[1][l];
-        yz += yv[2][l];
-        Py[3 * j] -= yv[0][l];
-        Py[3 * j + 1] -= yv[1][l];
-        Py[3 * j + 2] -= yv[2][l];
+        sx = sy = sz = sd = 0.0;
       }
       sx += fx[l];
       sy += fy[l];
@@ -447,17 +407,14 @@ RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, do
 }  // namespace
 
 void ComputeForces(const Model& m, const Parameters& p, const ActiveTerms& terms, State& s,
-                   double h, double a_step, const ActiveTerms& lin, Vec3* f_explicit,
-                   const JacobianPass* edge_product) {
+                   double h, double a_step, const ActiveTerms& lin, Vec3* f_explicit) {
   const int32_t n = m.num_nodes;
   const double g = terms.gravity ? p.gravity : 0.0;
   for (int32_t i = 0; i < n; ++i) {
     s.f[i] = s.f_ext[i];
     s.f[i].y() -= m.mass[i] * g;
   }
-  if (terms.edges)
-    EdgeForces(m, p, terms.nonlinear_damper, s, h, a_step, lin.edges,
-               lin.edges ? edge_product : nullptr);
+  if (terms.edges) EdgeForces(m, p, terms.nonlinear_damper, s, h, a_step, lin.edges);
   if (terms.global_volume) GlobalVolumeForces(m, p, s, h, lin.global_volume);
   if (f_explicit != nullptr) {
     // Keep the shape springs' part apart: this copy, less the total after them.

@@ -34,23 +34,15 @@ struct ActiveTerms {
 
 ActiveTerms DecideTerms(const Model& model, const Parameters& params);
 
-/// Inputs and output (3 doubles per node) of a Jacobian product fused into the edge kernel.
-struct JacobianPass {
-  const double* a = nullptr;  // stiffness input
-  const double* b = nullptr;  // damping input
-  double* out = nullptr;      // h^2 K_edges a + h D_edges b is added here
-};
-
 /// state.f = every force at (state.x, state.v); updates state.tension. With a_step > 0, advances
 /// every Voigt ratio over a_step holding the current l, dl/dt. For each term on in `linearise` (a
 /// subset of `terms`; all off for the explicit integrator), fills its blocks of the implicit system
 /// for step h; with linearise.edges, the edges' share of the diagonal is added to state.diag (the
-/// caller sets it to the masses first), and with `edge_product` the edges' part of
-/// ApplyJacobian(a, b) is added to its output in the same pass. With `shape_forces` (n entries),
-/// also writes the shape springs' (eqs. 5-6) share of state.f there.
+/// caller sets it to the masses first). With `shape_forces` (n entries), also writes the shape
+/// springs' (eqs. 5-6) share of state.f there.
 void ComputeForces(const Model& model, const Parameters& params, const ActiveTerms& terms,
                    State& state, double h, double a_step, const ActiveTerms& linearise,
-                   Vec3* shape_forces = nullptr, const JacobianPass* edge_product = nullptr);
+                   Vec3* shape_forces = nullptr);
 
 /// out = h^2 K a + h D b with D, K the positive semi-definite damping and stiffness
 /// approximations stored by ComputeForces for the terms on in `terms` (a = b for the system's
