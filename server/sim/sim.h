@@ -129,6 +129,8 @@ class SimObject {
   /// Floor force on each node during the last tick [N] (contact reaction).
   std::span<const Vec3> floor_reaction() const { return state_.floor_reaction; }
   const Model& model() const { return model_; }
+  /// The whole changing state (like MuJoCo's mjData), for benchmarks and diagnostics.
+  const State& state() const { return state_; }
   const Parameters& parameters() const { return params_; }
   Integrator integrator() const { return integrator_; }
   const EventCounts& events() const { return events_; }
