@@ -603,20 +603,19 @@ void GlobalVolumeJacobian(const Model& m, const State& s, std::span<const Vec3> 
   for (int32_t i = 0; i < n; ++i) out[i] += c * s.vol_grad[i];
 }
 
-constexpr int kTetPairs[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
-constexpr int kFacePairs[3][2] = {{0, 1}, {0, 2}, {1, 2}};
-
 // g -= coef w_q w_r^T for list entry `entry` (model.h) of an element whose corner directions are
-// w (3 per corner): q is the corner at the edge's first node.
+// w (3 per corner), in single precision (the blocks are stored in it).
 template <typename W>
-inline void SubtractPairBlock(int32_t entry, const int (*pairs)[2], double coef, const W* w,
-                              double g[9]) {
-  const int p = (entry >> 1) & 7, f = entry & 1;
-  const W* wq = w + 3 * pairs[p][f];
-  const W* wr = w + 3 * pairs[p][1 - f];
+inline void SubtractPairBlock(int32_t entry, float coef, const W* w, float g[9]) {
+  const W* wq = w + 3 * ((entry >> 2) & 3);
+  const W* wr = w + 3 * (entry & 3);
+  const float r0 = static_cast<float>(wr[0]), r1 = static_cast<float>(wr[1]),
+              r2 = static_cast<float>(wr[2]);
   for (int r = 0; r < 3; ++r) {
-    const double cr = coef * double(wq[r]);
-    for (int c = 0; c < 3; ++c) g[3 * r + c] -= cr * double(wr[c]);
+    const float cr = coef * static_cast<float>(wq[r]);
+    g[3 * r] -= cr * r0;
+    g[3 * r + 1] -= cr * r1;
+    g[3 * r + 2] -= cr * r2;
   }
 }
 
@@ -632,31 +631,32 @@ RHEO_SIM_KERNEL void AssembleEdgeBlocks(const Model& m, const ActiveTerms& terms
   const int32_t* fs = m.edge_face_start.data();
   const int32_t* fl = m.edge_face.data();
   for (size_t k = 0; k < ne; ++k) {
-    double g[9] = {};
+    float g[9] = {};
     if (terms.edges) {
       const double e[3] = {s.edge_ex[k], s.edge_ey[k], s.edge_ez[k]};
       const double axial = s.edge_axial_k[k] - s.edge_lateral[k] + s.edge_axial_c[k];
       for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) g[3 * r + c] = axial * e[r] * e[c];
-        g[4 * r] += s.edge_lateral[k];
+        for (int c = 0; c < 3; ++c)
+          g[3 * r + c] = static_cast<float>(axial * e[r] * e[c] + (r == c ? s.edge_lateral[k] : 0));
       }
     }
     if (terms.tet_volume) {
       for (int32_t q = ts[k]; q < ts[k + 1]; ++q) {
         const int32_t t = tl[q] >> 4;
         const double coef = s.tet_coef[t];
-        if (coef != 0.0) SubtractPairBlock(tl[q], kTetPairs, coef, &s.tet_w[12 * t], g);
+        if (coef != 0.0) SubtractPairBlock(tl[q], static_cast<float>(coef), &s.tet_w[12 * t], g);
       }
     }
     if (terms.area) {
       for (int32_t q = fs[k]; q < fs[k + 1]; ++q) {
         const int32_t f = fl[q] >> 4;
         const double coef = s.shape_coef[f];
-        if (coef != 0.0) SubtractPairBlock(fl[q], kFacePairs, coef, s.shape_dir[3 * f].data(), g);
+        if (coef != 0.0)
+          SubtractPairBlock(fl[q], static_cast<float>(coef), s.shape_dir[3 * f].data(), g);
       }
     }
     float* gk = G + 9 * (k - k % kEdgeBlock) + k % kEdgeBlock;
-    for (int c = 0; c < 9; ++c) gk[c * kEdgeBlock] = static_cast<float>(g[c]);
+    for (int c = 0; c < 9; ++c) gk[c * kEdgeBlock] = g[c];
   }
 }
 

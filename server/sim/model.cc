@@ -44,7 +44,8 @@ void FindElementEdges(Model& m) {
         int32_t flip = 0;
         const int32_t k = find(elems[t][pairs[p][0]], elems[t][pairs[p][1]], flip);
         if (k < 0) return false;
-        by_edge.push_back({k, static_cast<int32_t>(16 * t + 2 * p) + flip});
+        const int32_t q = pairs[p][flip], r = pairs[p][1 - flip];  // at the edge's first node: q
+        by_edge.push_back({k, static_cast<int32_t>(16 * t) + 4 * q + r});
       }
     }
     std::sort(by_edge.begin(), by_edge.end());

@@ -33,10 +33,9 @@ struct Model {
   std::vector<double> tet_min_height;        // smallest tet height (m) [m]
 
   // The tets and faces at each edge, for the assembled product of the implicit system (CSR: edge
-  // k's entries are [start[k], start[k + 1])). An entry is 16 t + 2 p + f for element t's node pair
-  // p (tets 01 02 03 12 13 23, faces 01 02 12), f = 1 when the edge runs from the pair's second
-  // node to its first. All four empty when some pair is not an edge (only in a model built from
-  // parts).
+  // k's entries are [start[k], start[k + 1])). An entry is 16 t + 4 q + r for element t whose
+  // corners q and r (0-3) are the edge's first and second node. All four empty when some pair of
+  // an element's nodes is not an edge (only in a model built from parts).
   std::vector<int32_t> edge_tet_start, edge_tet;
   std::vector<int32_t> edge_face_start, edge_face;
 
