@@ -433,6 +433,13 @@ void ComputeForces(const Model& m, const Parameters& p, const ActiveTerms& terms
 
 namespace {
 
+// out[node] += (x, y, z): a node's sum over its run of edges.
+inline void AddToNode(double* out, int32_t node, double x, double y, double z) {
+  out[3 * node] += x;
+  out[3 * node + 1] += y;
+  out[3 * node + 2] += z;
+}
+
 // out += K_e a + D_e b over the edges, K_e = (axial_k - lateral) e e^T + lateral I and
 // D_e = axial_c e e^T for d = a_i - a_j (and b_i - b_j): y to node i, -y to node j. A plain
 // scalar loop (little arithmetic per edge: the blocked form of the force kernels was slower
@@ -456,11 +463,7 @@ template <bool kSame>
   for (size_t k = 0; k < ne; ++k) {
     const int32_t i = E[2 * k], j = E[2 * k + 1];
     if (i != cur) {
-      if (cur >= 0) {
-        out[3 * cur] += sx;
-        out[3 * cur + 1] += sy;
-        out[3 * cur + 2] += sz;
-      }
+      if (cur >= 0) AddToNode(out, cur, sx, sy, sz);
       cur = i;
       ax = Pa[3 * i];
       ay = Pa[3 * i + 1];
@@ -486,11 +489,7 @@ template <bool kSame>
     out[3 * j + 1] -= y[1];
     out[3 * j + 2] -= y[2];
   }
-  if (cur >= 0) {
-    out[3 * cur] += sx;
-    out[3 * cur + 1] += sy;
-    out[3 * cur + 2] += sz;
-  }
+  if (cur >= 0) AddToNode(out, cur, sx, sy, sz);
 }
 
 // out += sum over tets of sigma (w . a) w (eq. 6's Gauss-Newton blocks). A plain loop, as for
@@ -567,11 +566,7 @@ RHEO_SIM_KERNEL void EdgeBlockJacobian(const Model& m, const State& s, const dou
     for (int l = 0; l < nb; ++l) {
       const int32_t i = E[2 * (k0 + l)], j = E[2 * (k0 + l) + 1];
       if (i != cur) {
-        if (cur >= 0) {
-          out[3 * cur] += sx;
-          out[3 * cur + 1] += sy;
-          out[3 * cur + 2] += sz;
-        }
+        if (cur >= 0) AddToNode(out, cur, sx, sy, sz);
         cur = i;
         sx = sy = sz = 0.0;
       }
@@ -583,11 +578,7 @@ RHEO_SIM_KERNEL void EdgeBlockJacobian(const Model& m, const State& s, const dou
       out[3 * j + 2] -= z[2][l];
     }
   }
-  if (cur >= 0) {
-    out[3 * cur] += sx;
-    out[3 * cur + 1] += sy;
-    out[3 * cur + 2] += sz;
-  }
+  if (cur >= 0) AddToNode(out, cur, sx, sy, sz);
 }
 
 // out += the rank-one global volume term's product.
