@@ -496,6 +496,10 @@ StepResult SimObject::Step(double dt) {
     state_.tet_split = shape == ShapeTreatment::kSplit;
     if (shape != ShapeTreatment::kImplicit) implicit_terms.area = false;
     if (shape == ShapeTreatment::kExplicit) implicit_terms.tet_volume = false;
+    state_.system_elements = shape == ShapeTreatment::kImplicit
+                                 ? static_cast<int64_t>(model_.tets.size() + model_.faces.size())
+                             : shape == ShapeTreatment::kSplit ? shape_implicit_tets_
+                                                               : 0;
     for (int32_t k = 0; k < substeps; ++k) {
       const internal::SolveStats st =
           internal::ImplicitEulerSubstep(model_, params_, terms, implicit_terms, state_, h, dt);

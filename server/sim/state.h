@@ -38,6 +38,8 @@ struct State {
   std::vector<double> tet_coef;    // h^2 sigma per tet (m) [N s/m]
   // Per-tet split of the shape springs between the linear system and the explicit forces.
   bool tet_split = false;             // tet_implicit decides; else all tets alike
+  int64_t system_elements = 0;        // tets and faces whose blocks are in the system
+  int32_t last_cg_iterations = 0;     // of the last implicit substep
   std::vector<uint8_t> tet_implicit;  // 1 = in the linear system (m)
   std::vector<double> tet_stiffness;  // scratch for the split's bisection (m)
   std::vector<double> tet_rows;       // scratch: each tet's share of its nodes' row sums (4m)
