@@ -299,12 +299,11 @@ std::vector<Eigen::Matrix3d> BlockJacobi(const PrecondSystem& sys) {
   const State& s = sys.s;
   std::vector<Eigen::Matrix3d> blocks(sys.n, Eigen::Matrix3d::Zero());
   for (size_t k = 0; k < m.edges.size(); ++k) {
-    const Vec3 e(s.edge_ex[k], s.edge_ey[k], s.edge_ez[k]);
-    const Eigen::Matrix3d g =
-        (s.edge_axial_k[k] - s.edge_lateral[k] + s.edge_axial_c[k]) * e * e.transpose() +
-        s.edge_lateral[k] * Eigen::Matrix3d::Identity();
-    blocks[m.edges[k][0]] += g;
-    blocks[m.edges[k][1]] += g;
+    double g[9];
+    internal::EdgeSystemBlock(s, k, g);
+    const Eigen::Matrix3d block = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(g);
+    blocks[m.edges[k][0]] += block;
+    blocks[m.edges[k][1]] += block;
   }
   if (sys.jac.tet_volume) {
     for (size_t t = 0; t < m.tets.size(); ++t) {

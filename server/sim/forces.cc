@@ -624,12 +624,9 @@ RHEO_SIM_KERNEL void AssembleEdgeBlocks(const Model& m, const ActiveTerms& terms
   for (size_t k = 0; k < ne; ++k) {
     float g[9] = {};
     if (terms.edges) {
-      const double e[3] = {s.edge_ex[k], s.edge_ey[k], s.edge_ez[k]};
-      const double axial = s.edge_axial_k[k] - s.edge_lateral[k] + s.edge_axial_c[k];
-      for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c)
-          g[3 * r + c] = static_cast<float>(axial * e[r] * e[c] + (r == c ? s.edge_lateral[k] : 0));
-      }
+      double ge[9];
+      EdgeSystemBlock(s, k, ge);
+      for (int c = 0; c < 9; ++c) g[c] = static_cast<float>(ge[c]);
     }
     if (terms.tet_volume) {
       for (int32_t q = ts[k]; q < ts[k + 1]; ++q) {

@@ -51,6 +51,17 @@ void ComputeForces(const Model& model, const Parameters& params, const ActiveTer
 void ApplyJacobian(const Model& model, const ActiveTerms& terms, const State& state,
                    std::span<const Vec3> a, std::span<const Vec3> b, std::span<Vec3> out);
 
+/// Edge k's 3x3 block of the system, K_e + D_e = (axial_k - lateral + axial_c) e e^T + lateral I
+/// (row-major), from what ComputeForces stored with linearise.edges.
+inline void EdgeSystemBlock(const State& s, size_t k, double g[9]) {
+  const double e[3] = {s.edge_ex[k], s.edge_ey[k], s.edge_ez[k]};
+  const double axial = s.edge_axial_k[k] - s.edge_lateral[k] + s.edge_axial_c[k];
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) g[3 * r + c] = axial * e[r] * e[c];
+    g[4 * r] += s.edge_lateral[k];
+  }
+}
+
 /// Edges per group in state.edge_block: a group holds its edges' 3x3 blocks component by
 /// component (9 rows of kEdgeBlock floats), so that the product vectorises across edges.
 inline constexpr int kEdgeBlock = 16;
