@@ -20,3 +20,25 @@ function(rheo_add_test name)
   gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST
     PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
 endfunction()
+
+# rheo_include_root(TARGET PREFIX DIR): the headers in DIR are reachable as "PREFIX/name.h" by
+# TARGET and by the targets that link it, and by nothing else. Each library gets an include root
+# of its own (a folder in the build tree holding one link, PREFIX -> DIR), so an include against
+# the direction of the layers (sim including daemon/..., the loop including daemon/device/...)
+# fails to compile: the header is simply not on that target's include path. The source folders
+# themselves are never on an include path; "../" in an include is refused by scripts/format.
+function(rheo_include_root target prefix dir)
+  set(root ${CMAKE_BINARY_DIR}/include-roots/${target})
+  set(link ${root}/${prefix})
+  get_filename_component(parent ${link} DIRECTORY)
+  file(MAKE_DIRECTORY ${parent})
+  if(NOT IS_SYMLINK ${link})
+    file(CREATE_LINK ${dir} ${link} SYMBOLIC)
+  endif()
+  get_target_property(type ${target} TYPE)
+  if(type STREQUAL "INTERFACE_LIBRARY")
+    target_include_directories(${target} INTERFACE $<BUILD_INTERFACE:${root}>)
+  else()
+    target_include_directories(${target} PUBLIC $<BUILD_INTERFACE:${root}>)
+  endif()
+endfunction()

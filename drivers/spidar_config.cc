@@ -215,6 +215,13 @@ Result<SpidarConfig> ParseSpidarConfig(std::string_view json_text, std::string_v
     r.Number("regularisation", &c.tension_qp.regularisation, 0.0, 1.0, true);
     r.Integer("max_iterations", &c.tension_qp.max_iterations, 1, 1000);
   }
+  if (top.Get("haptics", /*required=*/false)) {
+    if (const json* h = top.Object("haptics")) {
+      Reader r(*h, "haptics", &error);
+      r.Number("device_damping_n_s_per_m", &c.mechanism.damping, 0.0, 1000.0, /*lo_open=*/true,
+               /*required=*/false);
+    }
+  }
   if (!error.empty()) return InvalidArgument(std::string(source) + ": " + error);
   Status valid = ValidateSpidarConfig(c, source);
   if (!valid.ok()) return valid.error();

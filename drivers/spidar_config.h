@@ -72,6 +72,14 @@ struct TensionQpConfig {
 };
 
 /// A whole SPIDAR-G frame. Parse with ParseSpidarConfig; every field is then valid.
+/// What a haptic renderer must know of the mechanism beyond the driver's limits (the optional
+/// "haptics" block of a frame file; the driver itself does not use it).
+struct MechanismConfig {
+  /// The mechanism's own viscous damping b [N s/m]: the passivity bound K < 2 (b - B) / T of
+  /// the renderer's coupling, and the emulator's damping.
+  double damping = 2.0;
+};
+
 struct SpidarConfig {
   std::string name;
   std::string description;
@@ -83,6 +91,7 @@ struct SpidarConfig {
   GuardsConfig guards;
   PoseSolverConfig pose_solver;
   TensionQpConfig tension_qp;
+  MechanismConfig mechanism;
 };
 
 /// Parses and validates a frame layout (JSON text, SI units). Errors name the field, e.g.

@@ -14,10 +14,10 @@
 #include <sstream>
 #include <thread>
 
-#include "daemon/device_link.h"
-#include "daemon/engine.h"
-#include "daemon/frame_hub.h"
-#include "daemon/object_builder.h"
+#include "daemon/api/object_builder.h"
+#include "daemon/device/device_link.h"
+#include "daemon/loop/engine.h"
+#include "daemon/loop/frame_hub.h"
 #include "rheo/v1/frames.pb.h"
 #include "sim/sim.h"
 

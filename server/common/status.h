@@ -20,6 +20,7 @@ enum class ErrorCode {
   kUnimplemented,
   kUnavailable,
   kPermissionDenied,
+  kDataLoss,  // stored or transmitted data is corrupt
   kInternal,  // a bug or broken invariant
 };
 
@@ -44,6 +45,9 @@ inline Error FailedPrecondition(std::string m) {
 }
 inline Error Cancelled(std::string m) {
   return {ErrorCode::kCancelled, std::move(m)};
+}
+inline Error DataLoss(std::string m) {
+  return {ErrorCode::kDataLoss, std::move(m)};
 }
 inline Error Internal(std::string m) {
   return {ErrorCode::kInternal, std::move(m)};

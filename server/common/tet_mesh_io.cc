@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <sstream>
 
@@ -55,6 +56,22 @@ bool ParseNumbers(std::string_view text, std::vector<T>& out) {
 double Orientation(const TetMesh& m, const std::array<int32_t, 4>& t) {
   const Vec3& a = m.positions[t[0]];
   return (m.positions[t[1]] - a).dot((m.positions[t[2]] - a).cross(m.positions[t[3]] - a));
+}
+
+constexpr uint32_t kMeshMagic = 0x4d4f4852;  // "RHOM"
+constexpr uint32_t kMeshVersion = 1;
+
+template <typename T>
+void Append(std::string& out, const T& v) {
+  out.append(reinterpret_cast<const char*>(&v), sizeof(T));
+}
+
+template <typename T>
+bool Take(std::string_view in, size_t& pos, T& v) {
+  if (pos + sizeof(T) > in.size()) return false;
+  std::memcpy(&v, in.data() + pos, sizeof(T));
+  pos += sizeof(T);
+  return true;
 }
 
 }  // namespace
@@ -148,6 +165,62 @@ void ComputeBoundary(TetMesh& mesh) {
   mesh.surface.clear();
   for (const auto& [key, v] : faces)
     if (v.first == 1) mesh.surface.push_back(v.second);
+}
+
+std::string EncodeMeshBlob(const TetMesh& m) {
+  std::string out;
+  out.reserve(16 + m.positions.size() * 24 + m.tets.size() * 16 + m.surface.size() * 12);
+  Append(out, kMeshMagic);
+  Append(out, kMeshVersion);
+  Append(out, static_cast<uint32_t>(m.positions.size()));
+  Append(out, static_cast<uint32_t>(m.tets.size()));
+  Append(out, static_cast<uint32_t>(m.surface.size()));
+  for (const Vec3& p : m.positions) {
+    Append(out, p.x());
+    Append(out, p.y());
+    Append(out, p.z());
+  }
+  for (const auto& t : m.tets)
+    for (int32_t v : t) Append(out, v);
+  for (const auto& f : m.surface)
+    for (int32_t v : f) Append(out, v);
+  return out;
+}
+
+Result<TetMesh> DecodeMeshBlob(std::string_view blob) {
+  size_t pos = 0;
+  uint32_t magic = 0, version = 0, nv = 0, nt = 0, nf = 0;
+  if (!Take(blob, pos, magic) || magic != kMeshMagic || !Take(blob, pos, version) ||
+      version != kMeshVersion || !Take(blob, pos, nv) || !Take(blob, pos, nt) ||
+      !Take(blob, pos, nf))
+    return DataLoss("mesh blob has an unknown header");
+  const size_t need =
+      static_cast<size_t>(nv) * 24 + static_cast<size_t>(nt) * 16 + static_cast<size_t>(nf) * 12;
+  if (blob.size() - pos != need) return DataLoss("mesh blob is truncated or has trailing bytes");
+  TetMesh m;
+  m.positions.resize(nv);
+  for (auto& p : m.positions) {
+    double x, y, z;
+    Take(blob, pos, x);
+    Take(blob, pos, y);
+    Take(blob, pos, z);
+    p = Vec3(x, y, z);
+  }
+  m.tets.resize(nt);
+  for (auto& t : m.tets)
+    for (auto& v : t) {
+      Take(blob, pos, v);
+      if (v < 0 || static_cast<uint32_t>(v) >= nv)
+        return DataLoss("mesh blob has a vertex index out of range");
+    }
+  m.surface.resize(nf);
+  for (auto& f : m.surface)
+    for (auto& v : f) {
+      Take(blob, pos, v);
+      if (v < 0 || static_cast<uint32_t>(v) >= nv)
+        return DataLoss("mesh blob has a vertex index out of range");
+    }
+  return m;
 }
 
 }  // namespace rheo

@@ -18,6 +18,12 @@ std::string WriteVtu(const TetMesh& mesh);
 /// with negative orientation are flipped.
 Result<TetMesh> ReadVtu(std::string_view text);
 
+/// The compact binary blob the object store keeps (little-endian: a "RHOM" magic, a version,
+/// the three counts, then doubles for positions and int32s for tetrahedra and surface).
+std::string EncodeMeshBlob(const TetMesh& mesh);
+/// DATA_LOSS for an unknown header, a wrong length or an index out of range.
+Result<TetMesh> DecodeMeshBlob(std::string_view blob);
+
 /// Rebuilds mesh.surface from the tetrahedra: faces used once, oriented outward.
 void ComputeBoundary(TetMesh& mesh);
 

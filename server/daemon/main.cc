@@ -15,9 +15,9 @@
 #include <boost/asio/signal_set.hpp>
 #include <filesystem>
 
-#include "daemon/engine.h"
-#include "daemon/frame_hub.h"
-#include "daemon/services.h"
+#include "daemon/api/services.h"
+#include "daemon/loop/engine.h"
+#include "daemon/loop/frame_hub.h"
 
 #ifndef RHEO_VERSION
 #define RHEO_VERSION "0.0.0"
@@ -177,9 +177,8 @@ int main(int argc, char** argv) {
   const int workers = flags.workers > 0
                           ? flags.workers
                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()) - 1);
-  JobPool<JobEvent> jobs(workers, flags.max_jobs, [](rheo::Error e) {
-    return JobEvent{{}, std::move(e)};
-  });
+  JobPool<JobEvent> jobs(workers, flags.max_jobs,
+                         [](rheo::Error e) { return JobEvent::Failed(std::move(e)); });
 
   // The device is opened and calibrated before the loop starts; the loop then owns its ticks.
   std::unique_ptr<DeviceLink> device;

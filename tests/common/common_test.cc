@@ -58,4 +58,26 @@ TEST(TetMeshIo, BadFilesGetMessagesThatSayWhat) {
 }
 
 }  // namespace
+TEST(TetMeshIo, BlobRoundTripAndCorruptionIsDataLoss) {
+  TetMesh m;
+  m.positions = {{0.1, 0.2, 0.3}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  m.tets = {{0, 1, 2, 3}};
+  m.surface = {{1, 2, 3}};
+  std::string blob = EncodeMeshBlob(m);
+  auto r = DecodeMeshBlob(blob);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->positions, m.positions);
+  EXPECT_EQ(r->tets, m.tets);
+  EXPECT_EQ(r->surface, m.surface);
+  auto truncated = DecodeMeshBlob(blob.substr(0, blob.size() - 1));
+  ASSERT_FALSE(truncated.ok());
+  EXPECT_EQ(truncated.error().code, ErrorCode::kDataLoss);
+  std::string bad = blob;
+  bad[bad.size() - 4] = 9;  // a surface index beyond the vertex count
+  auto bad_index = DecodeMeshBlob(bad);
+  ASSERT_FALSE(bad_index.ok());
+  EXPECT_EQ(bad_index.error().code, ErrorCode::kDataLoss);
+  EXPECT_NE(bad_index.error().message.find("out of range"), std::string::npos);
+}
+
 }  // namespace rheo

@@ -1,7 +1,7 @@
 // The device side of the loop without gRPC: the lock-free slot, the network tool fed from other
 // threads, the emergency stop from another thread, and the contact on a simulated tetrahedron
 // (threads: also run under TSan, label rt).
-#include "daemon/device_link.h"
+#include "daemon/device/device_link.h"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 #include <thread>
 #include <vector>
 
-#include "daemon/seq_slot.h"
+#include "daemon/loop/seq_slot.h"
 #include "held_tet.h"
 #include "sim/sim.h"
 

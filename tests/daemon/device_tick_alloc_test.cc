@@ -6,7 +6,7 @@
 #include <array>
 
 #include "alloc_counter.h"
-#include "daemon/device_link.h"
+#include "daemon/device/device_link.h"
 #include "held_tet.h"
 #include "sim/sim.h"
 

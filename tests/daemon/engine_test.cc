@@ -1,5 +1,5 @@
 // The engine's loop, command queue and frame hub under concurrent clients (also run under TSan).
-#include "daemon/engine.h"
+#include "daemon/loop/engine.h"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 #include <thread>
 #include <vector>
 
-#include "daemon/frame_hub.h"
+#include "daemon/loop/frame_hub.h"
 #include "sim/primitives.h"
 #include "sim/sim.h"
 

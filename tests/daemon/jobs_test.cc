@@ -1,6 +1,6 @@
 // The mesh-job pool alone: bounded admission, cancellation, deadlines, and that every job ends
 // with a word to its watcher, also when it never got to run.
-#include "daemon/jobs.h"
+#include "daemon/jobs/jobs.h"
 
 #include <gtest/gtest.h>
 

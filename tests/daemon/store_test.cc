@@ -1,4 +1,4 @@
-#include "daemon/store.h"
+#include "daemon/store/store.h"
 
 #include <gtest/gtest.h>
 
@@ -99,21 +99,6 @@ TEST_F(StoreTest, UnopenablePathIsAClearError) {
   auto s = Store::Open(dir_ + "/no/such/dir/objects.db");
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().message.find("cannot open object store"), std::string::npos);
-}
-
-TEST(StoreMesh, EncodeDecodeRoundTripAndCorruptionIsDetected) {
-  TetMesh m;
-  m.positions = {{0.1, 0.2, 0.3}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-  m.tets = {{0, 1, 2, 3}};
-  m.surface = {{1, 2, 3}};
-  std::string blob = Store::EncodeMesh(m);
-  auto r = Store::DecodeMesh(blob);
-  ASSERT_TRUE(r.ok());
-  EXPECT_EQ(r->positions, m.positions);
-  EXPECT_FALSE(Store::DecodeMesh(blob.substr(0, blob.size() - 1)).ok());
-  std::string bad = blob;
-  bad[bad.size() - 4] = 9;  // a surface index beyond the vertex count
-  EXPECT_FALSE(Store::DecodeMesh(bad).ok());
 }
 
 TEST(StoreIds, AreUnique) {

@@ -54,7 +54,25 @@ std::string ErrorOf(const nlohmann::json& j) {
   return c.ok() ? "" : c.error().message;
 }
 
+// The "haptics" block is read with the rest of the frame file (rheod does not parse it again).
+TEST(SpidarConfig, MechanismDampingComesFromTheHapticsBlock) {
+  auto j = X5Json();
+  auto c = ParseSpidarConfig(j.dump(), "test.json");
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  EXPECT_DOUBLE_EQ(c->mechanism.damping, j["haptics"]["device_damping_n_s_per_m"].get<double>());
+  j["haptics"]["device_damping_n_s_per_m"] = 3.5;
+  EXPECT_DOUBLE_EQ(ParseSpidarConfig(j.dump(), "test.json")->mechanism.damping, 3.5);
+  j.erase("haptics");
+  EXPECT_DOUBLE_EQ(ParseSpidarConfig(j.dump(), "test.json")->mechanism.damping, 2.0);
+}
+
 TEST(SpidarConfig, ErrorsNameTheField) {
+  {
+    auto j = X5Json();
+    j["haptics"]["device_damping_n_s_per_m"] = 0.0;
+    EXPECT_NE(ErrorOf(j).find("haptics.device_damping_n_s_per_m: must be in (0"),
+              std::string::npos);
+  }
   {
     auto j = X5Json();
     j["strings"][3].erase("min_tension_n");

@@ -1,42 +1,13 @@
 // SceneService: objects into and out of the loop, material parameters, run control.
 #include <algorithm>
 
-#include "daemon/grpc_status.h"
-#include "daemon/services.h"
+#include "daemon/api/convert.h"
+#include "daemon/api/grpc_status.h"
+#include "daemon/api/services.h"
 #include "sim/sim.h"
 
 namespace rheo::daemon {
 namespace {
-
-v1::Integrator ToProto(sim::Integrator i) {
-  return i == sim::Integrator::kImplicitEuler ? v1::INTEGRATOR_IMPLICIT
-                                              : v1::INTEGRATOR_SYMPLECTIC_EULER;
-}
-
-void FillParameters(const sim::Parameters& p,
-                    google::protobuf::RepeatedPtrField<v1::Parameter>* out) {
-  for (const sim::ParameterInfo& info : sim::ParameterTable()) {
-    v1::Parameter* q = out->Add();
-    q->set_name(info.name);
-    q->set_value(p.*(info.field));
-    q->set_unit(info.unit);
-    q->set_min(info.min);
-    q->set_max(info.max);
-    q->set_description(info.description);
-  }
-}
-
-void FillSceneObject(const SceneEntry& e, bool sleeping, v1::SceneObject* out) {
-  out->set_instance_id(e.instance_id);
-  out->set_object_id(e.object_id);
-  out->set_preset(e.preset);
-  out->set_integrator(ToProto(e.integrator));
-  FillParameters(e.params, out->mutable_parameters());
-  out->mutable_position()->set_x(e.position.x());
-  out->mutable_position()->set_y(e.position.y());
-  out->mutable_position()->set_z(e.position.z());
-  out->set_sleeping(sleeping);
-}
 
 Status ApplyParameterList(sim::Parameters& p,
                           const google::protobuf::RepeatedPtrField<v1::Parameter>& list) {
@@ -65,11 +36,11 @@ grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetScene
 
 grpc::Status SceneServiceImpl::AddToScene(grpc::ServerContext*, const v1::AddToSceneRequest* req,
                                           v1::SceneObject* out) {
-  return AddObjectToScene(ctx_, *req, out);
+  return AddObjectToScene(ctx_, *req, /*fresh=*/nullptr, out);
 }
 
 grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneRequest& request,
-                              v1::SceneObject* out) {
+                              const TetMesh* fresh, v1::SceneObject* out) {
   const v1::AddToSceneRequest* req = &request;
   if (req->object_id().empty()) return ToGrpc(InvalidArgument("object_id is empty"));
   const std::string preset_name = req->preset().empty() ? "soft-jelly" : req->preset();
@@ -84,27 +55,32 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
     case v1::INTEGRATOR_UNSPECIFIED: break;
     default: return ToGrpc(InvalidArgument("integrator must be SYMPLECTIC_EULER or IMPLICIT"));
   }
-  auto stored = ctx_.store->Get(req->object_id(), /*with_mesh=*/true);
-  if (!stored.ok()) return ToGrpc(stored.error());
+  // A mesh just built by CreateObject is used as it is; otherwise it comes from the store.
+  Result<StoredObject> stored = StoredObject{};
+  if (!fresh) {
+    stored = ctx_.store->Get(req->object_id(), /*with_mesh=*/true);
+    if (!stored.ok()) return ToGrpc(stored.error());
+  }
+  const TetMesh& mesh = fresh ? *fresh : stored->mesh;
 
   std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
   if (ctx_.scene->size() >= static_cast<size_t>(kMaxSceneObjects))
     return ToGrpc(ResourceExhausted("the scene holds its limit of " +
                                     std::to_string(kMaxSceneObjects) + " objects"));
-  const uint64_t n = stored->mesh.positions.size();
+  const uint64_t n = mesh.positions.size();
   if (ctx_.scene->total_vertices() + n > ctx_.engine->options().max_frame_vertices)
     return ToGrpc(ResourceExhausted(
         "adding " + std::to_string(n) + " vertices would pass the scene's limit of " +
         std::to_string(ctx_.engine->options().max_frame_vertices) + " vertices"));
 
-  auto created = sim::SimObject::Create(stored->mesh, params, integrator);
+  auto created = sim::SimObject::Create(mesh, params, integrator);
   if (!created.ok()) return ToGrpc(created.error());
   std::unique_ptr<sim::SimObject> object = std::move(created).value();
 
   // Placement: the rest shape's bounding-box centre goes to `position`; by default the object
   // stands centred over the origin, 2 cm above the floor.
   Eigen::AlignedBox3d box;
-  for (const Vec3& x : stored->mesh.positions) box.extend(x);
+  for (const Vec3& x : mesh.positions) box.extend(x);
   const Vec3 lo = box.min(), hi = box.max();
   Vec3 centre = 0.5 * (lo + hi);
   Vec3 target = req->has_position()
@@ -113,52 +89,38 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   if (!target.allFinite()) return ToGrpc(InvalidArgument("position has a non-finite coordinate"));
   object->Translate(target - centre);
 
-  // The haptic tool: the first object sets where the device's workspace sits (its centre 5 mm
-  // above the object's highest point), and every object gets its renderer here, off the loop.
+  std::vector<uint32_t> triangles;
+  triangles.reserve(mesh.surface.size() * 3);
+  for (const auto& f : mesh.surface)
+    for (int32_t v : f) triangles.push_back(static_cast<uint32_t>(v));
+
+  // The haptic side (off the loop): the object's renderer, and for the first object of an empty
+  // scene the device's workspace placed over it.
   std::unique_ptr<ObjectContact> contact;
   if (ctx_.device_link) {
-    const ToolTelemetry t = ctx_.engine->tool();
-    Vec3 origin(t.tool_origin[0], t.tool_origin[1], t.tool_origin[2]);
-    if (ctx_.scene->size() == 0) {
-      // Above the highest point, where the surface faces up and a press does not push sideways.
-      Vec3 top = object->positions()[0];
-      for (const Vec3& x : object->positions())
-        if (x.y() > top.y()) top = x;
-      origin = top + Vec3(0, ctx_.device_link->renderer_config().tool_radius + 0.005, 0);
+    auto attached =
+        ctx_.device_link->PrepareObject(triangles, object->positions(), object->model().mass,
+                                        ctx_.scene->size() == 0, ctx_.engine->tool());
+    if (!attached.ok()) return ToGrpc(attached.error());
+    if (attached->sets_origin) {
       Command oc;
       oc.type = Command::Type::kSetToolOrigin;
-      oc.vec = {origin.x(), origin.y(), origin.z()};
+      oc.vec = {attached->tool_origin.x(), attached->tool_origin.y(), attached->tool_origin.z()};
       if (ctx_.engine->Submit(oc) == 0) return QueueFull();
     }
-    const Vec3 tool = origin + Vec3(t.device_position[0] - t.tool_origin[0],
-                                    t.device_position[1] - t.tool_origin[1],
-                                    t.device_position[2] - t.tool_origin[2]);
-    double min_mass = 0.0;
-    for (const auto& f : stored->mesh.surface)
-      for (int32_t v : f) {
-        const double m = object->model().mass[v];
-        if (min_mass == 0.0 || m < min_mass) min_mass = m;
-      }
-    auto made =
-        ctx_.device_link->MakeContact(stored->mesh.surface, object->positions(), tool, min_mass);
-    if (!made.ok())
-      return ToGrpc(Error{made.error().code, "the haptic renderer refused this object's surface: " +
-                                                 made.error().message});
-    contact = std::move(made).value();
+    contact = std::move(attached->contact);
   }
 
   auto entry = std::make_shared<SceneEntry>();
   entry->instance_id = ctx_.scene->NextId();
-  entry->object_id = stored->id;
+  entry->object_id = req->object_id();
   entry->preset = preset_name;
   entry->integrator = integrator;
   entry->params = params;
   entry->vertex_count = static_cast<uint32_t>(n);
   entry->position = target;
   entry->object = object.get();
-  entry->triangles.reserve(stored->mesh.surface.size() * 3);
-  for (const auto& f : stored->mesh.surface)
-    for (int32_t v : f) entry->triangles.push_back(static_cast<uint32_t>(v));
+  entry->triangles = std::move(triangles);
   ctx_.scene->Put(entry);
 
   Command c;

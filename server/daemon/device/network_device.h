@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <mutex>
 
-#include "daemon/seq_slot.h"
+#include "daemon/loop/seq_slot.h"
 #include "drivers/haptic_device.h"
 
 namespace rheo::daemon {

@@ -5,14 +5,14 @@
 #include <chrono>
 #include <string>
 
-#include "daemon/device_link.h"
-#include "daemon/engine.h"
-#include "daemon/frame_hub.h"
-#include "daemon/jobs.h"
-#include "daemon/lease.h"
-#include "daemon/object_builder.h"
-#include "daemon/scene.h"
-#include "daemon/store.h"
+#include "daemon/api/lease.h"
+#include "daemon/api/object_builder.h"
+#include "daemon/api/scene.h"
+#include "daemon/device/device_link.h"
+#include "daemon/jobs/jobs.h"
+#include "daemon/loop/engine.h"
+#include "daemon/loop/frame_hub.h"
+#include "daemon/store/store.h"
 #include "rheo/v1/daemon.grpc.pb.h"
 #include "rheo/v1/device.grpc.pb.h"
 #include "rheo/v1/frames.grpc.pb.h"
@@ -23,8 +23,13 @@ namespace rheo::daemon {
 
 /// One event of an object-creation job: progress, or the error that ended it.
 struct JobEvent {
+  static JobEvent Progress(v1::CreateObjectProgress p) { return {std::move(p), std::nullopt, {}}; }
+  static JobEvent Failed(Error e) { return {{}, std::move(e), {}}; }
+
   v1::CreateObjectProgress progress;
   std::optional<Error> error;
+  /// With the "done" event: the mesh just stored, so add_to_scene need not read it back.
+  std::shared_ptr<const TetMesh> mesh;
 };
 
 /// What the services share: set once at startup, read-only afterwards.
@@ -46,9 +51,6 @@ struct DaemonContext {
   std::chrono::seconds job_timeout{120};
 };
 
-/// Spells the device's faults for people: the driver's bits plus the daemon's stop states.
-std::vector<std::string> DeviceFaultList(const ToolTelemetry& t);
-
 /// How long a service waits for the loop to apply a command it submitted [ns].
 inline constexpr int64_t kApplyTimeoutNs = 2'000'000'000;
 /// The loop's command queue refused a command (RESOURCE_EXHAUSTED, retry).
@@ -58,10 +60,11 @@ grpc::Status NotApplied(const char* what);
 /// Submits a command that owns no memory and waits until the loop applied it.
 grpc::Status SubmitAndWait(Engine& engine, const Command& c);
 
-/// Loads a stored object, builds its simulation and hands it to the loop (AddToScene and
-/// CreateObject with add_to_scene).
+/// Builds the simulation of a stored object and hands it to the loop (AddToScene, and
+/// CreateObject with add_to_scene). `fresh` is the object's mesh when the caller has just built
+/// and stored it (used as it is); null loads it from the store.
 grpc::Status AddObjectToScene(const DaemonContext& ctx, const v1::AddToSceneRequest& request,
-                              v1::SceneObject* out);
+                              const TetMesh* fresh, v1::SceneObject* out);
 
 class DaemonServiceImpl final : public v1::DaemonService::Service {
  public:

@@ -1,23 +1,13 @@
-#include "daemon/services.h"
-
+// FrameService: the loop's frames at each client's own rate (topology once, then positions).
 #include <google/protobuf/util/time_util.h>
 
-#include <algorithm>
-#include <cmath>
+#include <thread>
 
-#include "daemon/grpc_status.h"
+#include "daemon/api/convert.h"
+#include "daemon/api/services.h"
 
 namespace rheo::daemon {
 namespace {
-
-void FillPercentiles(const rt::Histogram& h, v1::Percentiles* out) {
-  out->set_p50_us(h.Quantile(0.5) / 1e3);
-  out->set_p99_us(h.Quantile(0.99) / 1e3);
-  out->set_p999_us(h.Quantile(0.999) / 1e3);
-  out->set_max_us(h.max_ns() / 1e3);
-  out->set_mean_us(h.mean_ns() / 1e3);
-  out->set_count(h.count());
-}
 
 // Volume enclosed by `triangles` (outward, 3 indices each) over the frame's float positions
 // (x, y, z per vertex) [m^3]; computed here, off the loop, for the frames a client takes.
@@ -32,78 +22,11 @@ double EnclosedVolume(const float* xyz, uint32_t vertex_count,
   return v / 6.0;
 }
 
-void SetVec(const std::array<double, 3>& a, v1::Vec3* out) {
-  out->set_x(a[0]);
-  out->set_y(a[1]);
-  out->set_z(a[2]);
-}
-
-void FillFrameTool(const ToolTelemetry& t, const DaemonContext& ctx, v1::ToolState* out) {
-  out->set_present(true);
-  SetVec(t.device_position, out->mutable_device_pose()->mutable_position());
-  auto* q = out->mutable_device_pose()->mutable_orientation();
-  q->set_w(t.device_orientation[0]);
-  q->set_x(t.device_orientation[1]);
-  q->set_y(t.device_orientation[2]);
-  q->set_z(t.device_orientation[3]);
-  SetVec(t.proxy, out->mutable_proxy_position());
-  out->set_tip_radius(t.tip_radius);
-  out->set_in_contact(t.in_contact);
-  SetVec(t.displayed_force, out->mutable_wrench()->mutable_force());
-  SetVec(t.displayed_torque, out->mutable_wrench()->mutable_torque());
-  SetVec(t.requested_force, out->mutable_requested()->mutable_force());
-  SetVec(t.requested_torque, out->mutable_requested()->mutable_torque());
-  SetVec(t.object_force, out->mutable_object_force());
-  if (ctx.leases) out->set_lease_holder(ctx.leases->Holder().first);
-  for (const std::string& f : DeviceFaultList(t)) out->add_faults(f);
-  out->set_contact_instance_id(t.contact_instance);
-  out->set_emergency_stopped(t.emergency_stopped);
-}
-
 grpc::Status ShuttingDown() {
   return grpc::Status(grpc::StatusCode::UNAVAILABLE, "rheod is shutting down");
 }
 
 }  // namespace
-
-// ---- DaemonService ----
-
-grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetStatusRequest*,
-                                          v1::DaemonStatus* out) {
-  const rt::Loop& loop = ctx_.engine->loop();
-  const rt::LoopStats& s = loop.stats();
-  out->set_version(ctx_.version);
-  out->set_uptime_s(
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - ctx_.started).count());
-  out->set_listen_address(ctx_.listen_address);
-  out->set_data_dir(ctx_.data_dir);
-  v1::LoopStatus* l = out->mutable_loop();
-  l->set_rate_hz(1e9 / static_cast<double>(loop.options().period_ns));
-  l->set_ticks(s.ticks.load());
-  l->set_late_ticks(s.late_ticks.load());
-  l->set_overruns(s.overruns.load());
-  l->set_skipped_ticks(s.skipped_ticks.load());
-  FillPercentiles(s.period, l->mutable_period());
-  FillPercentiles(s.wake_latency, l->mutable_wake_latency());
-  FillPercentiles(s.work, l->mutable_work());
-  l->set_realtime_priority(loop.environment().realtime);
-  l->set_memory_locked(loop.environment().memory_locked);
-  l->set_notes(loop.environment().notes);
-  l->set_commands_applied(ctx_.engine->commands_applied());
-  l->set_commands_rejected(ctx_.engine->commands_rejected());
-  l->set_restores(ctx_.engine->restores());
-  out->set_device(ctx_.device);
-  if (ctx_.device_link) out->add_capabilities("device");
-  out->set_frame_clients(static_cast<uint32_t>(ctx_.hub->clients()));
-  out->set_scene_objects(static_cast<uint32_t>(ctx_.scene->size()));
-  if (auto n = ctx_.store->Count(); n.ok()) out->set_stored_objects(static_cast<uint32_t>(*n));
-  out->set_running_jobs(static_cast<uint32_t>(ctx_.jobs->in_flight()));
-  for (const char* c : {"loop", "frames", "sketch", "mesh", "store", "sim"})
-    out->add_capabilities(c);
-  return grpc::Status::OK;
-}
-
-// ---- FrameService ----
 
 grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
                                            const v1::WatchFramesRequest* request,
@@ -170,7 +93,9 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
       os->set_volume(EnclosedVolume(p, fo.vertex_count, entry->triangles));
       if (request->positions()) os->mutable_positions()->Add(p, p + 3u * fo.vertex_count);
     }
-    if (f.tool.present) FillFrameTool(f.tool, ctx_, frame.mutable_tool());
+    if (f.tool.present)
+      FillToolState(f.tool, ctx_.leases ? ctx_.leases->Holder().first : std::string(),
+                    frame.mutable_tool());
     frame.mutable_loop()->set_ticks(f.ticks);
     frame.mutable_loop()->set_late_ticks(f.late_ticks);
     frame.mutable_loop()->set_last_work_us(f.work_ns / 1e3);
@@ -188,23 +113,6 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
       std::this_thread::sleep_until(due);
     }
   }
-  return grpc::Status::OK;
-}
-
-grpc::Status QueueFull() {
-  return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                      "the loop's command queue is full; retry shortly");
-}
-
-grpc::Status NotApplied(const char* what) {
-  return grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                      std::string("the loop did not take the ") + what + " within 2 s");
-}
-
-grpc::Status SubmitAndWait(Engine& engine, const Command& c) {
-  const uint64_t seq = engine.Submit(c);
-  if (seq == 0) return QueueFull();
-  if (!engine.WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("command");
   return grpc::Status::OK;
 }
 

@@ -1,15 +1,14 @@
-#include "daemon/store.h"
+#include "daemon/store/store.h"
 
 #include <sqlite3.h>
 
 #include <cstring>
 #include <random>
 
+#include "common/tet_mesh_io.h"
+
 namespace rheo::daemon {
 namespace {
-
-constexpr uint32_t kMeshMagic = 0x4d4f4852;  // "RHOM"
-constexpr uint32_t kMeshVersion = 1;
 
 // RAII prepared statement.
 class Stmt {
@@ -39,19 +38,6 @@ class Stmt {
   sqlite3_stmt* stmt_ = nullptr;
   int rc_;
 };
-
-template <typename T>
-void Append(std::string& out, const T& v) {
-  out.append(reinterpret_cast<const char*>(&v), sizeof(T));
-}
-
-template <typename T>
-bool Take(const std::string& in, size_t& pos, T& v) {
-  if (pos + sizeof(T) > in.size()) return false;
-  std::memcpy(&v, in.data() + pos, sizeof(T));
-  pos += sizeof(T);
-  return true;
-}
 
 }  // namespace
 
@@ -123,7 +109,7 @@ Status Store::Put(const StoredObject& o) {
   st.Blob(5, o.sketch);
   st.Text(6, o.sketch_kind);
   st.Blob(7, o.background);
-  st.Blob(8, EncodeMesh(o.mesh));
+  st.Blob(8, EncodeMeshBlob(o.mesh));
   st.Text(9, o.triangulation_svg);
   if (sqlite3_step(st.get()) != SQLITE_DONE)
     return Error{ErrorCode::kUnavailable, "object store: cannot save " + o.id + ": " + st.Error()};
@@ -149,7 +135,7 @@ Result<StoredObject> Store::Get(const std::string& id, bool with_mesh) {
   o.sketch_kind = st.ColumnBytes(5);
   o.background = st.ColumnBytes(6);
   if (with_mesh) {
-    Result<TetMesh> m = DecodeMesh(st.ColumnBytes(7));
+    Result<TetMesh> m = DecodeMeshBlob(st.ColumnBytes(7));
     if (!m.ok()) return Internal("object " + id + ": " + m.error().message);
     o.mesh = std::move(m).value();
   }
@@ -222,60 +208,6 @@ std::string Store::NewId() {
   char buf[32];
   std::snprintf(buf, sizeof buf, "obj-%016llx", static_cast<unsigned long long>(rng()));
   return buf;
-}
-
-std::string Store::EncodeMesh(const TetMesh& m) {
-  std::string out;
-  out.reserve(16 + m.positions.size() * 24 + m.tets.size() * 16 + m.surface.size() * 12);
-  Append(out, kMeshMagic);
-  Append(out, kMeshVersion);
-  Append(out, static_cast<uint32_t>(m.positions.size()));
-  Append(out, static_cast<uint32_t>(m.tets.size()));
-  Append(out, static_cast<uint32_t>(m.surface.size()));
-  for (const Vec3& p : m.positions) {
-    Append(out, p.x());
-    Append(out, p.y());
-    Append(out, p.z());
-  }
-  for (const auto& t : m.tets)
-    for (int32_t v : t) Append(out, v);
-  for (const auto& f : m.surface)
-    for (int32_t v : f) Append(out, v);
-  return out;
-}
-
-Result<TetMesh> Store::DecodeMesh(const std::string& blob) {
-  size_t pos = 0;
-  uint32_t magic = 0, version = 0, nv = 0, nt = 0, nf = 0;
-  if (!Take(blob, pos, magic) || magic != kMeshMagic || !Take(blob, pos, version) ||
-      version != kMeshVersion || !Take(blob, pos, nv) || !Take(blob, pos, nt) ||
-      !Take(blob, pos, nf))
-    return Internal("stored mesh has an unknown header");
-  const size_t need =
-      static_cast<size_t>(nv) * 24 + static_cast<size_t>(nt) * 16 + static_cast<size_t>(nf) * 12;
-  if (blob.size() - pos != need) return Internal("stored mesh is truncated");
-  TetMesh m;
-  m.positions.resize(nv);
-  for (auto& p : m.positions) {
-    double x, y, z;
-    Take(blob, pos, x);
-    Take(blob, pos, y);
-    Take(blob, pos, z);
-    p = Vec3(x, y, z);
-  }
-  m.tets.resize(nt);
-  for (auto& t : m.tets)
-    for (auto& v : t) {
-      Take(blob, pos, v);
-      if (v < 0 || static_cast<uint32_t>(v) >= nv) return Internal("stored mesh has a bad index");
-    }
-  m.surface.resize(nf);
-  for (auto& f : m.surface)
-    for (auto& v : f) {
-      Take(blob, pos, v);
-      if (v < 0 || static_cast<uint32_t>(v) >= nv) return Internal("stored mesh has a bad index");
-    }
-  return m;
 }
 
 }  // namespace rheo::daemon

@@ -6,7 +6,7 @@
 #include <string>
 
 #include "common/status.h"
-#include "daemon/store.h"
+#include "daemon/store/store.h"
 #include "rheo/v1/objects.pb.h"
 
 namespace rheo::daemon {

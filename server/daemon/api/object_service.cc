@@ -2,9 +2,9 @@
 #include <algorithm>
 
 #include "common/tet_mesh_io.h"
-#include "daemon/grpc_status.h"
-#include "daemon/object_builder.h"
-#include "daemon/services.h"
+#include "daemon/api/grpc_status.h"
+#include "daemon/api/object_builder.h"
+#include "daemon/api/services.h"
 #include "mesh/mesh.h"
 
 namespace rheo::daemon {
@@ -40,32 +40,32 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
       SteadyDeadline(*context, ctx_.job_timeout),
       [request = *request, limits, store](Job<JobEvent>& job) {
         auto built = BuildObject(request, limits, [&](const v1::CreateObjectProgress& p) {
-          job.Push(JobEvent{p, std::nullopt});
+          job.Push(JobEvent::Progress(p));
           return job.ShouldStop();
         });
         if (!built.ok()) {
-          job.Push(JobEvent{{}, built.error()});
+          job.Push(JobEvent::Failed(built.error()));
           return;
         }
         v1::CreateObjectProgress p;
         p.set_stage("store");
         p.set_fraction(0.97);
-        job.Push(JobEvent{p, std::nullopt});
+        job.Push(JobEvent::Progress(p));
         if (auto stop = job.ShouldStop()) {
-          job.Push(JobEvent{{}, *stop});
+          job.Push(JobEvent::Failed(*stop));
           return;
         }
         if (Status s = store->Put(*built); !s.ok()) {
-          job.Push(JobEvent{{}, s.error()});
+          job.Push(JobEvent::Failed(s.error()));
           return;
         }
         p.set_stage("done");
         p.set_fraction(1.0);
         if (!p.mutable_object()->ParseFromString(built->meta)) {
-          job.Push(JobEvent{{}, Internal("object metadata did not serialize")});
+          job.Push(JobEvent::Failed(Internal("object metadata did not serialize")));
           return;
         }
-        job.Push(JobEvent{p, std::nullopt});
+        job.Push(JobEvent{p, std::nullopt, std::make_shared<TetMesh>(std::move(built->mesh))});
       });
   if (!job.ok()) return ToGrpc(job.error());
   const std::string job_id = (*job)->id();
@@ -92,7 +92,9 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
     if (ev.progress.has_object() && request->add_to_scene()) {
       v1::AddToSceneRequest add;
       add.set_object_id(ev.progress.object().id());
-      if (grpc::Status s = AddObjectToScene(ctx_, add, ev.progress.mutable_scene_object()); !s.ok())
+      if (grpc::Status s =
+              AddObjectToScene(ctx_, add, ev.mesh.get(), ev.progress.mutable_scene_object());
+          !s.ok())
         return grpc::Status(s.error_code(),
                             "object " + add.object_id() +
                                 " was stored but not added to the scene: " + s.error_message());

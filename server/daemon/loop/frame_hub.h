@@ -8,7 +8,7 @@
 #include <mutex>
 #include <thread>
 
-#include "daemon/engine.h"
+#include "daemon/loop/engine.h"
 
 namespace rheo::daemon {
 

@@ -1,4 +1,4 @@
-#include "daemon/network_device.h"
+#include "daemon/device/network_device.h"
 
 #include <algorithm>
 

@@ -1,4 +1,4 @@
-#include "daemon/engine.h"
+#include "daemon/loop/engine.h"
 
 #include <thread>
 

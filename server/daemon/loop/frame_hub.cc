@@ -1,4 +1,4 @@
-#include "daemon/frame_hub.h"
+#include "daemon/loop/frame_hub.h"
 
 #include <algorithm>
 

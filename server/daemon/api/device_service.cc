@@ -3,11 +3,14 @@
 #include <google/protobuf/util/time_util.h>
 
 #include <cmath>
-#include <sstream>
+#include <optional>
 #include <thread>
+#include <vector>
 
-#include "daemon/grpc_status.h"
-#include "daemon/services.h"
+#include "daemon/api/convert.h"
+#include "daemon/api/grpc_status.h"
+#include "daemon/api/services.h"
+#include "daemon/device/tool_placement.h"
 
 namespace rheo::daemon {
 namespace {
@@ -16,22 +19,6 @@ grpc::Status NoDevice() {
   return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
                       "no haptic device is attached: start rheod with --device sim-spidar-g, "
                       "spidar-g or network");
-}
-
-void SetVec(const std::array<double, 3>& a, v1::Vec3* out) {
-  out->set_x(a[0]);
-  out->set_y(a[1]);
-  out->set_z(a[2]);
-}
-
-Vec3 ToVec(const std::array<double, 3>& a) {
-  return Vec3(a[0], a[1], a[2]);
-}
-
-void SetVec(const Vec3& a, v1::Vec3* out) {
-  out->set_x(a.x());
-  out->set_y(a.y());
-  out->set_z(a.z());
 }
 
 // Waits until the loop published a tool state from a tick after `after_tick`.
@@ -52,71 +39,9 @@ grpc::Status CheckLeaseDuration(double seconds) {
   return grpc::Status::OK;
 }
 
-void FillLease(const LeaseManager::Lease& l, v1::Lease* out) {
-  out->set_lease_id(l.id);
-  out->set_holder(l.holder);
-  out->set_expires_in_s(LeaseManager::SecondsLeft(l));
-}
-
 void FillStatus(const DaemonContext& ctx, const ToolTelemetry& t, v1::DeviceStatus* out) {
-  const DeviceLink& link = *ctx.device_link;
-  const drivers::DeviceInfo& info = link.info();
-  out->set_kind(ctx.device);
-  out->set_name(info.name);
-  out->set_model(info.name + " (" + info.model + ")");
-  out->set_connected(t.connected);
-  out->set_calibrated(t.calibrated);
-  out->set_emergency_stopped(t.emergency_stopped);
-  for (int i = 0; i < t.num_motors; ++i) {
-    out->add_string_tensions(t.tensions[i]);
-    out->add_string_lengths(t.lengths[i]);
-  }
-  const Vec3 device_frame = ToVec(t.device_position) - ToVec(t.tool_origin);
-  SetVec(device_frame, out->mutable_pose()->mutable_position());
-  auto* q = out->mutable_pose()->mutable_orientation();
-  q->set_w(t.device_orientation[0]);
-  q->set_x(t.device_orientation[1]);
-  q->set_y(t.device_orientation[2]);
-  q->set_z(t.device_orientation[3]);
-  SetVec(t.displayed_force, out->mutable_wrench()->mutable_force());
-  SetVec(t.displayed_torque, out->mutable_wrench()->mutable_torque());
-  SetVec(t.requested_force, out->mutable_requested_wrench()->mutable_force());
-  SetVec(t.requested_torque, out->mutable_requested_wrench()->mutable_torque());
-  out->set_max_force(info.max_force);
-  out->set_max_stiffness(link.effective_stiffness());
-  auto [holder, left] = ctx.leases->Holder();
-  out->set_lease_holder(holder);
-  out->set_lease_expires_in_s(left);
-  for (const std::string& f : DeviceFaultList(t)) out->add_faults(f);
-  out->set_fault_bits(t.faults);
-  SetVec(t.proxy, out->mutable_proxy_position());
-  out->set_in_contact(t.in_contact);
-  SetVec(t.object_force, out->mutable_object_force());
-  out->set_contact_instance_id(t.contact_instance);
-  v1::DeviceCounters* c = out->mutable_counters();
-  c->set_exchanges(t.exchanges);
-  c->set_device_errors(t.device_errors);
-  c->set_protocol_errors(t.protocol_errors);
-  c->set_deadline_misses(t.deadline_misses);
-  c->set_watchdog_trips(t.watchdog_trips);
-  c->set_recoveries(t.recoveries);
-  c->set_renderer_errors(t.renderer_errors);
-  c->set_calibrations(t.calibrations);
-  c->set_calibration_failures(t.calibration_failures);
-  c->set_tick(t.tick);
-  out->set_min_tension(link.min_tension());
-  out->set_tip_radius(t.tip_radius);
-  out->set_watchdog_timeout_ms(link.watchdog_timeout_ns() / 1e6);
-  SetVec(t.tool_origin, out->mutable_tool_origin());
-  const rt::LoopStats& s = ctx.engine->loop().stats();
-  v1::Percentiles* p = out->mutable_loop_period();
-  p->set_p50_us(s.period.Quantile(0.5) / 1e3);
-  p->set_p99_us(s.period.Quantile(0.99) / 1e3);
-  p->set_p999_us(s.period.Quantile(0.999) / 1e3);
-  p->set_max_us(s.period.max_ns() / 1e3);
-  p->set_mean_us(s.period.mean_ns() / 1e3);
-  p->set_count(s.period.count());
-  out->set_loop_late_ticks(s.late_ticks.load());
+  FillDeviceStatus(*ctx.device_link, ctx.device, t, ctx.leases->Holder(),
+                   ctx.engine->loop().stats(), out);
 }
 
 // The lease is needed when someone holds it (or when `always`).
@@ -127,19 +52,6 @@ grpc::Status NeedLease(const DaemonContext& ctx, const std::string& lease_id, bo
 }
 
 }  // namespace
-
-std::vector<std::string> DeviceFaultList(const ToolTelemetry& t) {
-  std::vector<std::string> out;
-  if (t.emergency_stopped) out.push_back("emergency stop engaged");
-  if (t.watchdog_tripped) out.push_back("watchdog tripped (the loop stalled)");
-  std::stringstream names(drivers::FaultNames(t.faults));
-  std::string item;
-  while (std::getline(names, item, ',')) {
-    size_t a = item.find_first_not_of(' ');
-    if (a != std::string::npos) out.push_back(item.substr(a));
-  }
-  return out;
-}
 
 grpc::Status DeviceServiceImpl::GetDeviceStatus(grpc::ServerContext*,
                                                 const v1::GetDeviceStatusRequest*,
@@ -317,42 +229,107 @@ grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext*,
   if (!(depth >= 0.0 && depth <= 0.05) || !(seconds >= 0.0 && seconds <= 60.0))
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                         "press.depth_m must be in [0, 0.05] m and press.seconds in [0, 60] s");
-  // Find the top of the object under the tool in the newest frame.
+  const v1::Press& press = req->press();
   const ToolTelemetry t = ctx_.engine->tool();
   auto snap = ctx_.hub->WaitNewer(0, std::chrono::steady_clock::now() + std::chrono::seconds(2),
                                   [] { return false; });
   if (!snap) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "no frame from the loop yet");
   const LoopFrame& f = snap->frame;
+  if (f.object_count == 0)
+    return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                        "the scene is empty: add an object first (AddToScene)");
+  // The press line: a given point, a given object's top, the tool's own line, or the first
+  // object's top when nothing is under the tool.
   const Vec3 tool = ToVec(t.device_position);
-  const double reach = std::max(3.0 * t.tip_radius, 0.005);  // [m]
-  double top = -1e30;
-  for (uint32_t i = 0; i < f.object_count; ++i) {
-    const FrameObject& fo = f.objects[i];
-    const float* x = f.positions.data() + 3u * fo.first;
-    for (uint32_t k = 0; k < fo.vertex_count; ++k) {
-      const double dx = x[3 * k] - tool.x(), dz = x[3 * k + 2] - tool.z();
-      if (dx * dx + dz * dz <= reach * reach) top = std::max(top, double(x[3 * k + 1]));
+  auto object_top = [&](uint32_t instance_id) -> std::optional<Vec3> {
+    auto entry = ctx_.scene->Find(instance_id);
+    for (uint32_t i = 0; entry && i < f.object_count; ++i) {
+      const FrameObject& fo = f.objects[i];
+      if (fo.instance_id != instance_id) continue;
+      std::vector<Vec3> x(fo.vertex_count);
+      const float* p = f.positions.data() + 3u * fo.first;
+      for (uint32_t k = 0; k < fo.vertex_count; ++k)
+        x[k] = Vec3(p[3 * k], p[3 * k + 1], p[3 * k + 2]);
+      return PressPoint(entry->triangles, x);
+    }
+    return std::nullopt;
+  };
+  Vec3 line = tool;
+  PressTarget target;
+  if (press.has_at()) {
+    line = Vec3(press.at().x(), 0.0, press.at().z());
+    if (!line.allFinite())
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "press.at must be finite");
+    target = FindPressTarget(f, line, t.tip_radius);
+    if (!target.found)
+      return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                          "no scene object lies under press.at (within " +
+                              std::to_string(std::lround(target.reach * 1e3)) + " mm)");
+  } else if (press.instance_id() != 0) {
+    auto top = object_top(press.instance_id());
+    if (!top)
+      return grpc::Status(grpc::StatusCode::NOT_FOUND, "no scene object with instance_id " +
+                                                           std::to_string(press.instance_id()));
+    line = *top;
+    target = FindPressTarget(f, line, t.tip_radius);
+  } else {
+    target = FindPressTarget(f, tool, t.tip_radius);
+    if (!target.found) {
+      auto top = object_top(f.objects[0].instance_id);
+      if (!top) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "the scene is changing; retry");
+      line = *top;
+      target = FindPressTarget(f, line, t.tip_radius);
     }
   }
-  if (top < -1e29)
-    return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
-                        "no scene object lies under the tool (within " + std::to_string(reach) +
-                            " m of its vertical line); add an object or move the hand over one");
+  if (!target.found)
+    return grpc::Status(grpc::StatusCode::UNAVAILABLE, "the object moved away; retry");
+
+  // The hand's path in the device frame: up to a safe height if it is lower, over the press line
+  // at that height, then down to `depth` below the surface.
+  const Vec3 origin = ToVec(t.tool_origin);
   const drivers::GripSnapshot grip = emu->Snapshot();
   const drivers::Pose start = grip.pose;
-  const double target_y = top + t.tip_radius - depth - t.tool_origin[1];
+  double highest = -1e30;
+  for (size_t k = 1; k < f.positions.size(); k += 3)
+    highest = std::max(highest, double(f.positions[k]));
+  const Vec3 goal(line.x() - origin.x(), target.surface_y + t.tip_radius - depth - origin.y(),
+                  line.z() - origin.z());
+  const Vec3 half = ctx_.device_link->info().workspace_half_extent;
+  if ((goal.array().abs() > half.array()).any())
+    return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                        "the press point lies outside the device's workspace (+-" +
+                            std::to_string(std::lround(half.x() * 1e3)) +
+                            " mm about its centre); move the object or press nearer the centre");
+  std::vector<std::pair<double, Vec3>> path;  // (arrival time from now [s], device position)
+  path.emplace_back(0.0, start.position);
+  const double dx = goal.x() - start.position.x(), dz = goal.z() - start.position.z();
+  if (dx * dx + dz * dz > 1e-6) {  // more than 1 mm off the line: move over it first
+    const double hover =
+        std::max(start.position.y(), highest + t.tip_radius + kToolClearance - origin.y());
+    if (hover > start.position.y() + 1e-4)
+      path.emplace_back(path.back().first + 0.25,
+                        Vec3(start.position.x(), hover, start.position.z()));
+    path.emplace_back(path.back().first + 0.5, Vec3(goal.x(), hover, goal.z()));
+  }
+  path.emplace_back(path.back().first + seconds, goal);
   const double t0 = grip.time;
-  emu->ScriptHand([start, target_y, t0, seconds](double now) {
-    const double s = seconds > 0.0 ? std::clamp((now - t0) / seconds, 0.0, 1.0) : 1.0;
+  emu->ScriptHand([path, t0](double now) {
+    const double s = now - t0;
     drivers::Pose p;
-    p.position = start.position;
-    p.position.y() = start.position.y() + s * (target_y - start.position.y());
+    p.position = path.back().second;
+    for (size_t i = 1; i < path.size(); ++i) {
+      if (s >= path[i].first) continue;
+      const double span = path[i].first - path[i - 1].first;
+      const double u = span > 0.0 ? std::clamp((s - path[i - 1].first) / span, 0.0, 1.0) : 1.0;
+      p.position = path[i - 1].second + u * (path[i].second - path[i - 1].second);
+      break;
+    }
     return p;
   });
-  SetVec(Vec3(start.position.x(), target_y, start.position.z()),
-         out->mutable_target()->mutable_position());
+  SetVec(goal, out->mutable_target()->mutable_position());
   out->mutable_target()->mutable_orientation()->set_w(1.0);
-  out->set_surface_y(top);
+  out->set_surface_y(target.surface_y);
+  out->set_instance_id(target.instance_id);
   return grpc::Status::OK;
 }
 

@@ -10,8 +10,8 @@
 
 #include "common/geometry.h"
 #include "common/status.h"
-#include "daemon/engine.h"
-#include "daemon/network_device.h"
+#include "daemon/device/network_device.h"
+#include "daemon/loop/engine.h"
 #include "drivers/haptic_device.h"
 #include "drivers/spidar_emulator.h"
 #include "drivers/watchdog.h"
@@ -61,6 +61,22 @@ class DeviceLink final : public TickDevice {
   Result<std::unique_ptr<ObjectContact>> MakeContact(
       std::span<const std::array<int32_t, 3>> surface, std::span<const Vec3> positions,
       const Vec3& tool, double min_node_mass) const;
+
+  /// What the device side needs for an object entering the scene, all built off the loop.
+  struct ObjectAttachment {
+    std::unique_ptr<ObjectContact> contact;  // the object's renderer, handed to the loop
+    /// The object places the device's workspace (the scene was empty): the scene position for
+    /// the device frame's origin, for kSetToolOrigin before the object enters.
+    bool sets_origin = false;
+    Vec3 tool_origin = Vec3::Zero();
+  };
+  /// `triangles` (3 per surface triangle, outward) index `positions` (the object's nodes,
+  /// placed in the scene) and `masses` [kg]. `first_in_scene`: the scene is empty, so the
+  /// workspace is placed over this object (WorkspaceOriginOver); `now`: the latest telemetry.
+  Result<ObjectAttachment> PrepareObject(std::span<const uint32_t> triangles,
+                                         std::span<const Vec3> positions,
+                                         std::span<const double> masses, bool first_in_scene,
+                                         const ToolTelemetry& now) const;
 
   /// Any thread: every motor to minimum tension now; stays so until ClearStop via the loop.
   void EmergencyStop();

@@ -9,7 +9,7 @@
 #include <span>
 #include <vector>
 
-#include "daemon/seq_slot.h"
+#include "daemon/loop/seq_slot.h"
 #include "rt/command_queue.h"
 #include "rt/loop.h"
 #include "rt/triple_buffer.h"
@@ -160,6 +160,10 @@ class Engine {
   void AttachDevice(TickDevice* device) { device_ = device; }
   void Start();
   void Stop();
+  /// Runs one tick on the calling thread, exactly as the loop thread runs it, for a caller that
+  /// owns the timing (a test counting the tick's allocations, an offline replay). Never while
+  /// the loop runs (between Start() and Stop()).
+  void TickOnce(const rt::TickInfo& info) { Tick(info); }
 
   /// Queues a command for the next tick. Returns its sequence number, or 0 when the queue is full
   /// (the caller keeps ownership of any payload then).

@@ -1,49 +1,14 @@
-#include "daemon/object_builder.h"
+#include "daemon/api/object_builder.h"
 
 #include <chrono>
 #include <cmath>
 
+#include "daemon/api/convert.h"
 #include "mesh/mesh.h"
 #include "sketch/sketch.h"
 
 namespace rheo::daemon {
 namespace {
-
-sketch::ContourOptions ToSketchOptions(const v1::ContourOptions& o) {
-  sketch::ContourOptions s;
-  if (o.epsilon_px() > 0) s.epsilon_px = o.epsilon_px();
-  if (o.max_gap_fraction() > 0) s.max_gap_fraction = o.max_gap_fraction();
-  return s;
-}
-
-void FillContourReport(const sketch::ContourResult& r, v1::ContourReport* out) {
-  for (const Vec2& p : r.contour.points) {
-    auto* q = out->mutable_contour()->add_points();
-    q->set_x(p.x());
-    q->set_y(p.y());
-  }
-  out->set_epsilon_px(r.epsilon_px);
-  out->set_distance_to_line_px(r.line_distance_px);
-  for (const auto& s : r.repairs) out->add_repairs(s);
-  for (const auto& s : r.warnings) out->add_warnings(s);
-  for (const auto& t : r.timings) (*out->mutable_timings_ms())[t.stage] += t.ms;
-}
-
-void FillMeshReport(const mesh::MeshResult& r, v1::MeshReport* out) {
-  const mesh::QualityReport& q = r.quality;
-  out->set_vertex_count(static_cast<uint32_t>(q.num_vertices));
-  out->set_tetrahedron_count(static_cast<uint32_t>(q.num_tets));
-  out->set_surface_triangle_count(static_cast<uint32_t>(q.num_surface_faces));
-  out->set_volume(q.tet_volume_sum);
-  out->set_surface_volume(q.surface_volume);
-  out->set_min_dihedral_deg(q.min_dihedral_deg);
-  out->set_median_dihedral_deg(q.median_dihedral_deg);
-  out->set_max_radius_edge_ratio(q.max_radius_edge);
-  out->set_min_volume_ratio(q.min_volume_ratio);
-  out->set_watertight(q.surface_closed && q.surface_manifold && q.surface_outward &&
-                      q.boundary_matches_surface);
-  for (const auto& t : r.timings) (*out->mutable_timings_ms())[t.stage] += t.seconds * 1e3;
-}
 
 Result<sketch::ContourResult> RunSketch(const v1::Sketch& s, const v1::ContourOptions& o) {
   const sketch::ContourOptions opts = ToSketchOptions(o);

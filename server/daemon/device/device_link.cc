@@ -1,11 +1,9 @@
-#include "daemon/device_link.h"
+#include "daemon/device/device_link.h"
 
 #include <cstdio>
-#include <fstream>
-#include <nlohmann/json.hpp>
-#include <sstream>
 #include <thread>
 
+#include "daemon/device/tool_placement.h"
 #include "drivers/device_factory.h"
 
 namespace rheo::daemon {
@@ -21,26 +19,42 @@ std::array<double, 3> A3(const Vec3& v) {
   return {v.x(), v.y(), v.z()};
 }
 
-// The frame file's optional "haptics" block: what the renderer needs to know about the
-// mechanism beyond the driver's limits.
-Result<double> ReadDeviceDamping(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return NotFound("device config " + path + ": cannot open");
-  std::stringstream text;
-  text << in.rdbuf();
-  auto j = nlohmann::json::parse(text.str(), nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded()) return InvalidArgument("device config " + path + ": not valid JSON");
-  const auto h = j.find("haptics");
-  if (h == j.end()) return 2.0;
-  const auto d = h->find("device_damping_n_s_per_m");
-  if (d == h->end()) return 2.0;
-  if (!d->is_number() || !(d->get<double>() > 0.0) || d->get<double>() > 1e3)
-    return InvalidArgument("device config " + path +
-                           ": haptics.device_damping_n_s_per_m must be in (0, 1000] N s/m");
-  return d->get<double>();
-}
-
 }  // namespace
+
+Result<DeviceLink::ObjectAttachment> DeviceLink::PrepareObject(std::span<const uint32_t> triangles,
+                                                               std::span<const Vec3> positions,
+                                                               std::span<const double> masses,
+                                                               bool first_in_scene,
+                                                               const ToolTelemetry& now) const {
+  ObjectAttachment out;
+  Vec3 origin(now.tool_origin[0], now.tool_origin[1], now.tool_origin[2]);
+  if (first_in_scene) {
+    origin = WorkspaceOriginOver(triangles, positions, renderer_config_.tool_radius);
+    out.sets_origin = true;
+    out.tool_origin = origin;
+  }
+  // Where the tool will be once the origin is in place: the grip keeps its device-frame pose.
+  const Vec3 grip(now.device_position[0] - now.tool_origin[0],
+                  now.device_position[1] - now.tool_origin[1],
+                  now.device_position[2] - now.tool_origin[2]);
+  double min_mass = 0.0;
+  std::vector<std::array<int32_t, 3>> surface(triangles.size() / 3);
+  for (size_t t = 0; t < surface.size(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = triangles[3 * t + k];
+      if (v >= positions.size() || v >= masses.size())
+        return InvalidArgument("surface triangle " + std::to_string(t) + " names vertex " +
+                               std::to_string(v) + " of " + std::to_string(positions.size()));
+      surface[t][k] = static_cast<int32_t>(v);
+      if (min_mass == 0.0 || masses[v] < min_mass) min_mass = masses[v];
+    }
+  auto made = MakeContact(surface, positions, origin + grip, min_mass);
+  if (!made.ok())
+    return Error{made.error().code,
+                 "the haptic renderer refused this object's surface: " + made.error().message};
+  out.contact = std::move(made).value();
+  return out;
+}
 
 const char* DeviceKindName(DeviceKind kind) {
   switch (kind) {
@@ -65,15 +79,13 @@ Result<std::unique_ptr<DeviceLink>> DeviceLink::Open(const DeviceLinkOptions& op
   } else {
     auto config = drivers::LoadSpidarConfigFile(options.config_path);
     if (!config.ok()) return config.error();
-    auto damping = ReadDeviceDamping(options.config_path);
-    if (!damping.ok()) return damping.error();
-    rc.device.damping = *damping;
+    rc.device.damping = config->mechanism.damping;
     std::string port = options.port;
     if (options.kind == DeviceKind::kSimSpidarG) {
       drivers::EmulatorOptions eo;
       // The emulated mechanism has the damping the frame file states, so the renderer's
       // passivity bound holds for it as it would for the hardware.
-      eo.linear_damping = *damping;
+      eo.linear_damping = config->mechanism.damping;
       eo.realtime_priority = options.realtime ? 85 : 0;
       auto emu = drivers::SpidarEmulator::Start(*config, eo);
       if (!emu.ok()) return emu.error();

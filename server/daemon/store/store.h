@@ -49,10 +49,6 @@ class Store {
   /// A fresh random id, e.g. "obj-3f9a0c2e71b4d855".
   static std::string NewId();
 
-  /// Mesh <-> compact binary blob (little-endian doubles and int32s, with a version header).
-  static std::string EncodeMesh(const TetMesh& mesh);
-  static Result<TetMesh> DecodeMesh(const std::string& blob);
-
  private:
   explicit Store(sqlite3* db) : db_(db) {}
   Status Exec(const char* sql);

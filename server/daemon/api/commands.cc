@@ -1,0 +1,23 @@
+// Commands into the loop from the services: submit, wait for the tick that applied them.
+#include "daemon/api/services.h"
+
+namespace rheo::daemon {
+
+grpc::Status QueueFull() {
+  return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                      "the loop's command queue is full; retry shortly");
+}
+
+grpc::Status NotApplied(const char* what) {
+  return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                      std::string("the loop did not take the ") + what + " within 2 s");
+}
+
+grpc::Status SubmitAndWait(Engine& engine, const Command& c) {
+  const uint64_t seq = engine.Submit(c);
+  if (seq == 0) return QueueFull();
+  if (!engine.WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("command");
+  return grpc::Status::OK;
+}
+
+}  // namespace rheo::daemon

@@ -1,0 +1,42 @@
+// DaemonService: the daemon's status (loop timing, counts, capabilities).
+#include "daemon/api/convert.h"
+#include "daemon/api/services.h"
+
+namespace rheo::daemon {
+
+grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetStatusRequest*,
+                                          v1::DaemonStatus* out) {
+  const rt::Loop& loop = ctx_.engine->loop();
+  const rt::LoopStats& s = loop.stats();
+  out->set_version(ctx_.version);
+  out->set_uptime_s(
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - ctx_.started).count());
+  out->set_listen_address(ctx_.listen_address);
+  out->set_data_dir(ctx_.data_dir);
+  v1::LoopStatus* l = out->mutable_loop();
+  l->set_rate_hz(1e9 / static_cast<double>(loop.options().period_ns));
+  l->set_ticks(s.ticks.load());
+  l->set_late_ticks(s.late_ticks.load());
+  l->set_overruns(s.overruns.load());
+  l->set_skipped_ticks(s.skipped_ticks.load());
+  FillPercentiles(s.period, l->mutable_period());
+  FillPercentiles(s.wake_latency, l->mutable_wake_latency());
+  FillPercentiles(s.work, l->mutable_work());
+  l->set_realtime_priority(loop.environment().realtime);
+  l->set_memory_locked(loop.environment().memory_locked);
+  l->set_notes(loop.environment().notes);
+  l->set_commands_applied(ctx_.engine->commands_applied());
+  l->set_commands_rejected(ctx_.engine->commands_rejected());
+  l->set_restores(ctx_.engine->restores());
+  out->set_device(ctx_.device);
+  if (ctx_.device_link) out->add_capabilities("device");
+  out->set_frame_clients(static_cast<uint32_t>(ctx_.hub->clients()));
+  out->set_scene_objects(static_cast<uint32_t>(ctx_.scene->size()));
+  if (auto n = ctx_.store->Count(); n.ok()) out->set_stored_objects(static_cast<uint32_t>(*n));
+  out->set_running_jobs(static_cast<uint32_t>(ctx_.jobs->in_flight()));
+  for (const char* c : {"loop", "frames", "sketch", "mesh", "store", "sim"})
+    out->add_capabilities(c);
+  return grpc::Status::OK;
+}
+
+}  // namespace rheo::daemon

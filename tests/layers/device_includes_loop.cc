@@ -1,0 +1,6 @@
+// Compiles: the device layer depends on the loop below it.
+#include "daemon/loop/engine.h"
+
+int DeviceSeesTheLoop() {
+  return rheo::daemon::kMaxSceneObjects;
+}

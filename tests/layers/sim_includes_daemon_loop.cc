@@ -1,0 +1,2 @@
+// Must not compile: the simulation library may not depend on the daemon.
+#include "daemon/loop/engine.h"
