@@ -506,7 +506,7 @@ def stroke_plan(name, truth, rng):
             g = rng.randint(3, 7)
             gaps.append(g)
             out.append(arc(truth, pos, q - g + (n - 4 * q if j == 3 else 0), wob=wob(0.4)))
-            pos += q + (0 if j < 3 else 0)
+            pos += q
         return out, gaps
     raise KeyError(name)
 
@@ -627,7 +627,7 @@ def photo_picture(strokes, width, cam, rng):
 
 
 CASES = [
-    # name, ideal outline, seed, line width, ink, description (for README.md)
+    # name, ideal outline, seed (README.md describes each case)
     ("ellipse", lambda: ellipse_curve(256, 256, 192, 128, 0.14), 11),
     ("bean", bean_curve, 12),
     ("star5", star_curve, 13),
