@@ -10,8 +10,7 @@ cd "$(dirname "$0")/../.."
 BUILD=build/full
 SECONDS_RUN=60
 RESOLUTION=0.007
-SKETCH=../shared/sketches/bean.json
-[ -f "$SKETCH" ] || SKETCH=clients/samples/pear.json
+SKETCH=samples/bean.json
 while [ $# -gt 0 ]; do
   case "$1" in
     --build) BUILD=$2; shift 2 ;;

@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <functional>
 
 namespace rheo::sketch::internal {
 namespace {
@@ -99,7 +100,7 @@ Bitmap Binarize(const GrayImage& img, const ContourOptions& o, std::string* desc
     for (int i = 0; i < 256; ++i) hist[i] += b[i];
   const int t = OtsuThreshold(hist);
   // Paper level per block: its 90th percentile; uneven light shows as spread among paper blocks.
-  int lo = 255, hi = 0;
+  std::vector<int> p90s;
   for (const auto& b : blocks) {
     uint64_t n = 0;
     for (uint32_t c : b) n += c;
@@ -113,7 +114,18 @@ Bitmap Binarize(const GrayImage& img, const ContourOptions& o, std::string* desc
         break;
       }
     }
-    if (p90 > t) lo = std::min(lo, p90), hi = std::max(hi, p90);
+    p90s.push_back(p90);
+  }
+  // Paper blocks: those above the Otsu threshold, and below it those that continue the paper
+  // levels without a jump. A block filled with ink (a silhouette) lies a jump below the paper;
+  // paper in shadow continues it. Otsu alone splits a photo's paper when its light falls off:
+  // the ink is a few percent of the pixels, the shadowed half of the paper becomes "ink".
+  constexpr int kPaperStep = 16;  // largest step between paper levels in smooth light
+  std::sort(p90s.begin(), p90s.end(), std::greater<int>());
+  int lo = 255, hi = 0;
+  for (size_t k = 0; k < p90s.size(); ++k) {
+    const bool continues = k > 0 && p90s[k - 1] - p90s[k] <= kPaperStep && lo == p90s[k - 1];
+    if (p90s[k] > t || continues) lo = std::min(lo, p90s[k]), hi = std::max(hi, p90s[k]);
   }
   Binarization mode = o.binarization;
   if (mode == Binarization::kAuto) {

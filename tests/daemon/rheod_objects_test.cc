@@ -28,10 +28,6 @@ std::string SketchPath(const std::string& name) {
   return std::string(RHEO_SKETCHES) + "/" + name;
 }
 
-bool HaveSketches() {
-  return std::filesystem::exists(SketchPath("bean.json"));
-}
-
 struct Created {
   grpc::Status status;
   std::vector<v1::CreateObjectProgress> progress;
@@ -61,7 +57,6 @@ v1::CreateObjectRequest BeanRequest() {
 }
 
 TEST(RheodObjects, SketchBecomesAStoredSolidThatSurvivesARestart) {
-  if (!HaveSketches()) GTEST_SKIP() << "sample sketches not found at " << RHEO_SKETCHES;
   std::string data_dir, id;
   auto keep = std::filesystem::temp_directory_path() / "rheod-keep-XXXXXX";
   std::string keep_dir = keep.string();
@@ -141,7 +136,6 @@ TEST(RheodObjects, SketchBecomesAStoredSolidThatSurvivesARestart) {
 }
 
 TEST(RheodObjects, BadSketchesGetTheRightCodeAndNothingStoredIsLost) {
-  if (!HaveSketches()) GTEST_SKIP() << "sample sketches not found";
   RheodProcess d;
   ASSERT_TRUE(d.started()) << d.log();
   auto stub = v1::ObjectService::NewStub(d.channel());
@@ -182,7 +176,6 @@ TEST(RheodObjects, BadSketchesGetTheRightCodeAndNothingStoredIsLost) {
 }
 
 TEST(RheodObjects, MeshSizeLimitIsResourceExhaustedNamingTheLimit) {
-  if (!HaveSketches()) GTEST_SKIP() << "sample sketches not found";
   RheodProcess d({"--max-tets", "1000"});
   ASSERT_TRUE(d.started()) << d.log();
   auto stub = v1::ObjectService::NewStub(d.channel());
@@ -194,7 +187,6 @@ TEST(RheodObjects, MeshSizeLimitIsResourceExhaustedNamingTheLimit) {
 }
 
 TEST(RheodScene, ObjectFallsAndStreamsTopologyOnceThenPositions) {
-  if (!HaveSketches()) GTEST_SKIP() << "sample sketches not found";
   RheodProcess d;
   ASSERT_TRUE(d.started()) << d.log();
   auto objects = v1::ObjectService::NewStub(d.channel());

@@ -1,6 +1,8 @@
 // Runs a fuzz target's LLVMFuzzerTestOneInput over a fixed, deterministic set of mutated inputs,
-// so every test run exercises the decoders with hostile bytes, with or without libFuzzer.
+// so every test run exercises the decoders with hostile bytes, with or without libFuzzer, and
+// it replays each file of the regression corpus (regressions/image or regressions/strokes) as is.
 //   sketch_fuzz_replay_{image,strokes} [mutations_per_seed]
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -108,14 +110,35 @@ int main(int argc, char** argv) {
   dict = {FromString("[["),   FromString("]]"),           FromString(","),    FromString("1e308"),
           FromString("-0.5"), FromString("\"strokes\":"), FromString("null"), FromString("{}")};
 #endif
-#ifdef RHEO_SKETCH_SAMPLES
-  // The shared sample sketches, when present, as more seeds.
+  // Three of the project's sample sketches (samples/) as more seeds; they are always there.
   for (const char* name : {"bean", "letter_c", "star5"}) {
     const std::string path =
         std::string(RHEO_SKETCH_SAMPLES) + "/" + name + (png_kind ? ".png" : ".json");
-    if (auto data = t::ReadFile(path)) seeds.push_back(FromString(*data));
+    auto data = t::ReadFile(path);
+    if (!data) {
+      std::fprintf(stderr, "missing sample %s\n", path.c_str());
+      return 1;
+    }
+    seeds.push_back(FromString(*data));
   }
-#endif
+  // The regression corpus: inputs libFuzzer once found (crashes, timeouts), each run as it is.
+  std::vector<std::string> regressions;
+  const std::filesystem::path corpus = RHEO_FUZZ_REGRESSIONS;
+  if (std::filesystem::is_directory(corpus)) {
+    for (const auto& e : std::filesystem::directory_iterator(corpus)) {
+      if (e.is_regular_file()) regressions.push_back(e.path().string());
+    }
+  }
+  std::sort(regressions.begin(), regressions.end());
+  for (const std::string& path : regressions) {
+    auto data = t::ReadFile(path);
+    if (!data) {
+      std::fprintf(stderr, "cannot read %s\n", path.c_str());
+      return 1;
+    }
+    const Bytes b = FromString(*data);
+    LLVMFuzzerTestOneInput(b.data(), b.size());
+  }
   std::mt19937 rng(20240601u);
   int runs = 0;
   for (const Bytes& s : seeds) {
@@ -127,7 +150,8 @@ int main(int argc, char** argv) {
       ++runs;
     }
   }
-  std::printf("%d inputs (%zu seeds x %d mutations), no invariant broken\n", runs, seeds.size(),
-              per_seed);
+  std::printf(
+      "%d inputs (%zu seeds x %d mutations) and %zu regression inputs, no invariant broken\n", runs,
+      seeds.size(), per_seed, regressions.size());
   return 0;
 }

@@ -139,6 +139,9 @@ inline bool ReadContour(const std::string& path, Polygon2& out) {
   return true;
 }
 
-inline const char* kSampleNames[] = {"bean", "ellipse", "fish", "letter_c", "mitten", "star5"};
+// The cases of samples/ (samples/README.md).
+inline const char* kSampleNames[] = {"bean",  "ellipse",  "fish",    "letter_c", "mitten",
+                                     "star5", "dumbbell", "octopus", "spiral",   "overdraw",
+                                     "gaps",  "pear",     "heart"};
 
 }  // namespace rheo::mesh::testing

@@ -203,5 +203,44 @@ TEST(SketchRaster, AdaptiveBinarizationSurvivesUnevenLightWhereOtsuFails) {
   EXPECT_EQ(desc.rfind("adaptive", 0), 0u) << desc;
 }
 
+// A photo of grey paper whose light falls off gently (to 0.6 in the far corner) with grey ink:
+// Otsu puts the shadowed paper in with the ink, so the blocks it calls ink are paper in shadow,
+// and auto must count them when it measures how uneven the paper is (it chose Otsu before).
+TEST(SketchRaster, AutoCountsShadowedPaperBlocksThatOtsuCallsInk) {
+  testing::Picture p = testing::Blank(256, 256, 200);
+  auto ring = testing::Ellipse({128, 128}, 90, 70, 500);
+  testing::InkPolyline(p, ring, true, 4.0, 100);
+  std::mt19937 rng(5);
+  testing::UnevenLight(p, 0.6, 3.0, rng);
+  internal::GrayImage g{p.width, p.height, p.px};
+  auto false_ink = [&](const Bitmap& b) {
+    int64_t n = 0;
+    for (int y = 0; y < b.height; ++y)
+      for (int x = 0; x < b.width; ++x)
+        if (b.at(x, y) && PointPolygonDistance(Vec2(x + 0.5, y + 0.5), ring) > 4) ++n;
+    return n;
+  };
+  std::string desc;
+  ContourOptions otsu;
+  otsu.binarization = Binarization::kOtsu;
+  EXPECT_GT(false_ink(Binarize(g, otsu, &desc, nullptr)), 1000);
+  Bitmap a = Binarize(g, ContourOptions{}, &desc, nullptr);
+  EXPECT_EQ(desc.rfind("adaptive", 0), 0u) << desc;
+  EXPECT_LT(false_ink(a), 50);
+}
+
+// A filled silhouette on evenly lit paper still gets one global threshold: its ink blocks lie a
+// jump below the paper, not a continuation of it.
+TEST(SketchRaster, AutoKeepsOtsuForAFilledShapeOnEvenPaper) {
+  testing::Picture p = testing::Blank(256, 256, 230);
+  testing::FillPolygon(p, testing::Ellipse({128, 128}, 100, 80, 400), 30);
+  std::mt19937 rng(6);
+  testing::UnevenLight(p, 0.97, 2.0, rng);
+  internal::GrayImage g{p.width, p.height, p.px};
+  std::string desc;
+  Binarize(g, ContourOptions{}, &desc, nullptr);
+  EXPECT_EQ(desc.rfind("otsu", 0), 0u) << desc;
+}
+
 }  // namespace
 }  // namespace rheo::sketch::internal
