@@ -14,16 +14,11 @@
 #include <cstring>
 #include <ctime>
 
+#include "common/clock.h"
 #include "drivers/spidar_kinematics.h"
 
 namespace rheo::drivers {
 namespace {
-
-int64_t NowNs() {
-  timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
-}
 
 Vec3 RotationVector(const Eigen::Quaterniond& q) {
   Eigen::AngleAxisd aa(q);
@@ -65,7 +60,7 @@ Result<std::unique_ptr<SpidarEmulator>> SpidarEmulator::Start(const SpidarConfig
   tcsetattr(e->slave_fd_, TCSANOW, &tio);
   const int flags = fcntl(e->master_fd_, F_GETFL);
   fcntl(e->master_fd_, F_SETFL, flags | O_NONBLOCK);
-  e->last_advance_ns_ = NowNs();
+  e->last_advance_ns_ = MonotonicNowNs();
   e->thread_ = std::thread([p = e.get()] { p->Run(); });
   return e;
 }
@@ -144,7 +139,7 @@ void SpidarEmulator::Run() {
     // Real time: wake at least every 0.5 ms so the grip keeps moving between commands.
     const int r = poll(&p, 1, options_.lockstep ? 5 : 1);
     if (!options_.lockstep) {
-      const int64_t now = NowNs();
+      const int64_t now = MonotonicNowNs();
       std::lock_guard lock(mutex_);
       // After a long pause (debugger, overload) do not replay more than 50 ms of physics.
       Advance(std::min((now - last_advance_ns_) * 1e-9, 0.05));
@@ -213,7 +208,7 @@ void SpidarEmulator::ApplyCurrentCommand() {
       state_.tensions[i] = std::max(t, 0.0);  // a string pulls; it cannot push
     }
     state_.last_command = values;
-    state_.last_command_ns = NowNs();
+    state_.last_command_ns = MonotonicNowNs();
     ++state_.current_commands;
     if (options_.lockstep) Advance(options_.lockstep_dt);
     Encoders(&reply);

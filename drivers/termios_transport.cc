@@ -9,14 +9,10 @@
 #include <cstring>
 #include <ctime>
 
+#include "common/clock.h"
+
 namespace rheo::drivers {
 namespace {
-
-int64_t NowNs() {
-  timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
-}
 
 speed_t BaudConstant(int baud) {
   switch (baud) {
@@ -35,7 +31,7 @@ speed_t BaudConstant(int baud) {
 // Waits for `events` on fd until `deadline_ns`; false on timeout or error.
 bool WaitFor(int fd, short events, int64_t deadline_ns) {
   for (;;) {
-    const int64_t left_ns = deadline_ns - NowNs();
+    const int64_t left_ns = deadline_ns - MonotonicNowNs();
     if (left_ns <= 0) return false;
     pollfd p{fd, events, 0};
     // poll() takes milliseconds; ppoll() takes the finer deadline.
@@ -91,7 +87,7 @@ TermiosTransport::~TermiosTransport() {
 }
 
 Status TermiosTransport::Write(std::span<const uint8_t> data, int timeout_us) {
-  const int64_t deadline = NowNs() + int64_t{timeout_us} * 1000;
+  const int64_t deadline = MonotonicNowNs() + int64_t{timeout_us} * 1000;
   size_t done = 0;
   while (done < data.size()) {
     const ssize_t n = ::write(fd_, data.data() + done, data.size() - done);
@@ -111,7 +107,7 @@ Status TermiosTransport::Write(std::span<const uint8_t> data, int timeout_us) {
 }
 
 Status TermiosTransport::ReadExact(std::span<uint8_t> data, int timeout_us) {
-  const int64_t deadline = NowNs() + int64_t{timeout_us} * 1000;
+  const int64_t deadline = MonotonicNowNs() + int64_t{timeout_us} * 1000;
   size_t done = 0;
   while (done < data.size()) {
     const ssize_t n = ::read(fd_, data.data() + done, data.size() - done);

@@ -7,12 +7,6 @@
 
 namespace rheo::drivers {
 
-int64_t MonotonicNowNs() {
-  timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
-}
-
 WatchdogThread::WatchdogThread(Watchdog& watchdog, int realtime_priority) : watchdog_(watchdog) {
   thread_ = std::thread([this, realtime_priority] {
     if (realtime_priority > 0) {

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <thread>
 
+#include "common/clock.h"
 #include "drivers/watchdog.h"
 
 namespace rheo::drivers {
@@ -32,7 +33,7 @@ class WatchdogThread {
   std::thread thread_;
 };
 
-/// CLOCK_MONOTONIC now [ns], the clock Watchdog expects.
-int64_t MonotonicNowNs();
+/// CLOCK_MONOTONIC now [ns], the clock Watchdog expects (common/clock.h).
+using rheo::MonotonicNowNs;
 
 }  // namespace rheo::drivers

@@ -10,11 +10,19 @@
 namespace rheo {
 namespace {
 
+// a + b + c, appended in place (GCC 12's -Wrestrict misfires on "literal" + std::string&&).
+std::string Concat(std::string_view a, std::string_view b, std::string_view c = {}) {
+  std::string out;
+  out.reserve(a.size() + b.size() + c.size());
+  out.append(a).append(b).append(c);
+  return out;
+}
+
 // Finds the text of the <DataArray ... Name="name" ...> element inside `section`.
 std::string_view FindArray(std::string_view doc, std::string_view section, std::string_view name) {
-  size_t s = doc.find("<" + std::string(section));
+  size_t s = doc.find(Concat("<", section));
   if (s == std::string_view::npos) return {};
-  size_t e = doc.find("</" + std::string(section), s);
+  size_t e = doc.find(Concat("</", section), s);
   if (e == std::string_view::npos) return {};
   std::string_view body = doc.substr(s, e - s);
   size_t pos = 0;
@@ -22,8 +30,7 @@ std::string_view FindArray(std::string_view doc, std::string_view section, std::
     size_t tag_end = body.find('>', pos);
     if (tag_end == std::string_view::npos) return {};
     std::string_view tag = body.substr(pos, tag_end - pos);
-    bool named =
-        name.empty() || tag.find("Name=\"" + std::string(name) + "\"") != std::string_view::npos;
+    bool named = name.empty() || tag.find(Concat("Name=\"", name, "\"")) != std::string_view::npos;
     size_t close = body.find("</DataArray>", tag_end);
     if (close == std::string_view::npos) return {};
     if (named) {

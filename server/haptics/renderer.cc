@@ -1,11 +1,11 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <string>
 #include <unordered_map>
 
+#include "common/format.h"
 #include "haptics/closest_point.h"
 #include "haptics/haptics.h"
 
@@ -25,12 +25,6 @@ constexpr double kSettle = 0.1;       // final approach to the surface, in tool 
 constexpr double kRelinearise = 0.5;  // longest step on one linearisation, in tool radii
 constexpr int kMaxDepenetration = 16;
 constexpr int kMaxMoves = 24;
-
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", v);
-  return buf;
-}
 
 // Error text: "<field> = <value> <unit> is outside <range>".
 Status Range(const char* field, double v, const char* unit, const char* range) {

@@ -1,9 +1,9 @@
 // Validity and quality checks run on every mesh.
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <numbers>
 
+#include "common/format.h"
 #include "mesh/mesh.h"
 
 namespace rheo::mesh {
@@ -21,12 +21,6 @@ double Median(std::vector<double>& v) {
   auto mid = v.begin() + static_cast<long>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
   return *mid;
-}
-
-std::string Fmt(const char* f, double a, double b = 0) {
-  char buf[200];
-  std::snprintf(buf, sizeof buf, f, a, b);
-  return buf;
 }
 
 }  // namespace
@@ -212,8 +206,8 @@ QualityReport CheckTetMesh(const TetMesh& mesh) {
                                              : 1.0;
   if (!(r.volume_rel_error <= 1e-9))
     r.failures.push_back(
-        Fmt("sum of tetrahedron volumes %.9g m^3 differs from the enclosed volume %.9g m^3",
-            r.tet_volume_sum, r.surface_volume));
+        Format("sum of tetrahedron volumes %.9g m^3 differs from the enclosed volume %.9g m^3",
+               r.tet_volume_sum, r.surface_volume));
   r.valid = r.failures.empty();
   return r;
 }

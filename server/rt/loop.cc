@@ -9,6 +9,8 @@
 #include <cerrno>
 #include <cstring>
 
+#include "common/clock.h"
+
 namespace rheo::rt {
 namespace {
 
@@ -24,9 +26,7 @@ timespec ToTimespec(int64_t ns) {
 }  // namespace
 
 int64_t Loop::NowNs() {
-  timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * kNsPerS + ts.tv_nsec;
+  return MonotonicNowNs();
 }
 
 Loop::Loop(LoopOptions options, TickFn tick) : options_(options), tick_(std::move(tick)) {}

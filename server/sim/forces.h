@@ -1,4 +1,5 @@
-// Force terms and their linearisation (internal to rheo_sim).
+// Force terms (forces.cc) and their linearisation: the implicit system's products and edge blocks
+// (jacobian.cc). Internal to rheo_sim.
 #pragma once
 
 #include <span>

@@ -2,8 +2,9 @@
 
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <string>
+
+#include "common/format.h"
 
 namespace rheo::sim {
 namespace {
@@ -42,9 +43,7 @@ constexpr std::array<ParameterInfo, 25> kTable = {{
 }};
 
 std::string RangeText(const ParameterInfo& info) {
-  char buf[160];
-  std::snprintf(buf, sizeof buf, "[%g, %g] %s", info.min, info.max, info.unit);
-  return buf;
+  return Format("[%g, %g] %s", info.min, info.max, info.unit);
 }
 
 const ParameterInfo* Find(std::string_view name) {
@@ -65,7 +64,7 @@ std::string KnownNames() {
 
 Status CheckOne(const ParameterInfo& info, double value) {
   if (!std::isfinite(value) || value < info.min || value > info.max) {
-    return InvalidArgument("parameter '" + std::string(info.name) + "' = " + std::to_string(value) +
+    return InvalidArgument("parameter '" + std::string(info.name) + "' = " + Num(value) +
                            " is out of range " + RangeText(info));
   }
   return Status::Ok();
@@ -73,8 +72,8 @@ Status CheckOne(const ParameterInfo& info, double value) {
 
 Status CheckCross(const Parameters& p) {
   if (p.f_min > p.f_max) {
-    return InvalidArgument("parameter 'f_min' (" + std::to_string(p.f_min) +
-                           " N) must not exceed 'f_max' (" + std::to_string(p.f_max) + " N)");
+    return InvalidArgument("parameter 'f_min' (" + Num(p.f_min) + " N) must not exceed 'f_max' (" +
+                           Num(p.f_max) + " N)");
   }
   return Status::Ok();
 }

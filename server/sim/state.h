@@ -24,18 +24,20 @@ struct State {
   std::vector<Vec3> f;            // force accumulator (n) [N]
   std::vector<Vec3> vol_grad;     // gradient of the enclosed volume per node (n) [m^2]
   std::vector<double> damp_diag;  // sum of the edge damping coefficients at each node (n) [N s/m]
-  // Per-edge linearisation for the implicit integrator.
-  std::vector<double> edge_ex, edge_ey, edge_ez;  // unit edge vectors (e)
-  std::vector<double> edge_axial_k;               // h^2 k_eff along the edge (e) [N s/m]
-  std::vector<double> edge_axial_c;               // h c_eff along the edge (e) [N s/m]
-  std::vector<double> edge_lateral;               // h^2 max(T,0)/l across the edge (e) [N s/m]
+  // Per-edge linearisation for the implicit integrator. The system is A = M + h D + h^2 K on the
+  // velocity change [m/s], so every block and coefficient of it is a mass: h^2 times a stiffness
+  // [N/m] and h times a viscosity [N s/m] are both [N s^2/m] = [kg].
+  std::vector<double> edge_ex, edge_ey, edge_ez;  // unit edge vectors (e) [-]
+  std::vector<double> edge_axial_k;               // h^2 k_eff along the edge (e) [N s^2/m = kg]
+  std::vector<double> edge_axial_c;               // h c_eff along the edge (e) [N s^2/m = kg]
+  std::vector<double> edge_lateral;  // h^2 max(T,0)/l across the edge (e) [N s^2/m = kg]
   // Per edge, its 3x3 block of the system with the shape springs' blocks added, in groups of
   // kEdgeBlock edges (forces.h); empty without model.edge_tet.
   std::vector<float> edge_block;
-  std::vector<double> shape_coef;  // h^2 sigma per face (k) [N s/m]
-  std::vector<Vec3> shape_dir;     // force directions, 3 per face (3k)
-  std::vector<float> tet_w;        // the same per tet, 12 in a row: [12 tet + 3 q + c] (12m)
-  std::vector<double> tet_coef;    // h^2 sigma per tet (m) [N s/m]
+  std::vector<double> shape_coef;  // h^2 sigma per face, sigma [N/m] (k) [N s^2/m = kg]
+  std::vector<Vec3> shape_dir;     // force directions, 3 per face (3k) [-]
+  std::vector<float> tet_w;        // the same per tet, 12 in a row: [12 tet + 3 q + c] (12m) [-]
+  std::vector<double> tet_coef;    // h^2 sigma per tet, sigma [N/m] (m) [N s^2/m = kg]
   // Per-tet split of the shape springs between the linear system and the explicit forces.
   bool tet_split = false;             // tet_implicit decides; else all tets alike
   int64_t system_elements = 0;        // tets and faces whose blocks are in the system
@@ -44,20 +46,21 @@ struct State {
   std::vector<double> tet_stiffness;  // scratch for the split's bisection (m)
   std::vector<double> tet_rows;       // scratch: each tet's share of its nodes' row sums (4m)
   std::vector<Vec3> f_tet_implicit;   // the implicit tets' share of f (n) [N]
-  double global_k = 0.0;              // h^2 K of the rank-one volume term [N s/m^5]
-  double global_c = 0.0;              // h C of the rank-one volume term [N s/m^5]
-  std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, dv;  // CG vectors (n)
-  std::vector<Vec3> dv_prev;                     // dv one substep back (n)
-  std::vector<double> diag;       // diagonal of the implicit system, for its preconditioner (n)
-  std::vector<double> inv_diag3;  // its inverse, 0 on fixed nodes, per coordinate (3n)
+  double global_k = 0.0;  // h^2 K of the rank-one volume term, K [N/m^5] [N s^2/m^5 = kg/m^4]
+  double global_c = 0.0;  // h C of the rank-one volume term, C [N s/m^5] [N s^2/m^5 = kg/m^4]
+  std::vector<Vec3> cg_r, cg_z, cg_p, cg_q;  // CG vectors (n)
+  std::vector<Vec3> dv;       // the substep's velocity change, CG's unknown (n) [m/s]
+  std::vector<Vec3> dv_prev;  // dv one substep back (n) [m/s]
+  std::vector<double> diag;   // diagonal of the implicit system, for its preconditioner (n) [kg]
+  std::vector<double> inv_diag3;  // its inverse, 0 on fixed nodes, per coordinate (3n) [1/kg]
   std::vector<double> mass3;      // node masses per coordinate (3n) [kg]
   std::vector<double> keep3;      // 1 per coordinate of a free node, 0 of a fixed one (3n)
 
   // History of the implicit integrator (BDF2): positions and velocities one substep back.
-  std::vector<Vec3> x_prev, v_prev;
+  std::vector<Vec3> x_prev, v_prev;  // [m], [m/s]
   bool have_prev = false;  // false after anything that breaks the history (restore, teleport)
   double prev_h = 0.0;     // the substep that produced the current state [s]
-  std::vector<Vec3> f_shape, f_shape_prev;  // explicit shape spring forces, now and one back
+  std::vector<Vec3> f_shape, f_shape_prev;  // explicit shape spring forces, now and one back [N]
   bool have_prev_shape = false;
 
   // Last good state for recovery.

@@ -228,12 +228,9 @@ std::pair<int, int> Farthest(const Bitmap& bm, int from, std::vector<int>& dist)
   return {best, dist[best]};
 }
 
-}  // namespace
-
-Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const ContourOptions& o) {
-  if (Status s = CheckOptions(o); !s) return s.error();
-  ContourResult r;
-  Stopwatch sw;
+// The picture's format from its signature, decoded to grey; sets r.kind, r.width, r.height.
+Result<internal::GrayImage> Decode(std::span<const uint8_t> bytes, const ContourOptions& o,
+                                   ContourResult& r) {
   Result<internal::GrayImage> img = InvalidArgument("");
   if (internal::LooksLikePng(bytes)) {
     r.kind = SketchKind::kPng;
@@ -247,23 +244,34 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
   if (!img.ok()) return img.error();
   r.width = img->width;
   r.height = img->height;
-  sw.Lap("decode", r);
+  return img;
+}
 
-  Bitmap bm = internal::Binarize(*img, o, &r.binarization, &r.warnings);
-  img = InvalidArgument("");  // release the grey picture
-  sw.Lap("binarize", r);
+// The binarized picture's parts: ink components with their pixels, and the holes in them with
+// their spans of paper.
+struct Components {
+  int stride = 0;  // of the bitmap the pixel indices refer to
+  std::vector<Component> comps;
+  std::vector<Hole> holes;
+  std::vector<Span> spans;
+  std::vector<int> ink;  // pixels of every component, component after component
+};
 
-  // Components: outside paper, ink components (8-connected), holes (4-connected paper inside).
+// Components: outside paper, ink components (8-connected), holes (4-connected paper inside).
+// Marks every pixel of `bm` as seen.
+Components FindComponents(Bitmap& bm) {
+  Components out;
   const int s = bm.stride;
+  out.stride = s;
   uint8_t* v = bm.v.data();
   const size_t npx = bm.v.size();
   // Component id per ink pixel; only ink pixels are written, so the pages of paper stay untouched.
   std::unique_ptr<int32_t[]> label(new int32_t[npx]);
   internal::SpanFill<false>(bm, 0, kBg, kOutside, [](int, int, int, int) {});
-  std::vector<Component> comps;
-  std::vector<Hole> holes;
-  std::vector<Span> spans;
-  std::vector<int> ink;  // pixels of every component, component after component
+  std::vector<Component>& comps = out.comps;
+  std::vector<Hole>& holes = out.holes;
+  std::vector<Span>& spans = out.spans;
+  std::vector<int>& ink = out.ink;
   std::vector<int> stack;
   const int off8[8] = {-s - 1, -s, -s + 1, -1, 1, s - 1, s, s + 1};
   const int off4[4] = {-s, -1, 1, s};
@@ -317,14 +325,19 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
   }
   for (size_t k = 8 * words; k < npx; ++k)
     if (v[k] <= kInk) visit(static_cast<int>(k));
-  sw.Lap("components", r);
+  return out;
+}
 
-  const int64_t speck = std::max<int64_t>(16, int64_t(1e-4 * double(r.width) * r.height));
+// Each component's kind (speck, drawn outline, filled silhouette, open line) from its size, line
+// width, holes and roundness; a warning when specks were ignored.
+// `width` x `height` is the picture's size.
+void Classify(Components& parts, int width, int height, std::vector<std::string>& warnings) {
+  const int64_t speck = std::max<int64_t>(16, int64_t(1e-4 * double(width) * height));
   int specks = 0;
-  for (Component& c : comps) {
+  for (Component& c : parts.comps) {
     const double w = c.Width();
     for (int id : c.holes) {
-      Hole& h = holes[id];
+      Hole& h = parts.holes[id];
       c.hole_area += h.area;
       const double thick = h.perimeter > 0 ? 2.0 * h.area / h.perimeter : 0.0;
       h.significant = h.area >= std::max(16.0, w * w) && thick >= std::max(2.0, 0.75 * w);
@@ -347,60 +360,39 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
     }
   }
   if (specks > 0) {
-    r.warnings.push_back("ignored " + std::to_string(specks) + " speck(s) smaller than " +
-                         std::to_string(speck) + " px");
+    warnings.push_back("ignored " + std::to_string(specks) + " speck(s) smaller than " +
+                       std::to_string(speck) + " px");
   }
+}
 
-  // Crop of one component: its ink, plus its slivers of paper (or all its holes).
-  auto crop = [&](const Component& c, int id, bool fill_all_holes) {
-    Bitmap b(c.x1 - c.x0 + 1, c.y1 - c.y0 + 1);
-    const int cs = b.stride;
-    auto to_crop = [&](int p) { return (p / s - c.y0 + 1) * cs + (p % s - c.x0 + 1); };
-    for (size_t k = c.first_pixel; k < c.first_pixel + size_t(c.area); ++k)
-      b.v[to_crop(ink[k])] = 1;
-    for (int hid : c.holes) {
-      const Hole& h = holes[hid];
-      if (h.significant && !fill_all_holes) continue;
-      for (size_t k = h.first_span; k < h.first_span + h.spans; ++k) {
-        const Span& sp = spans[k];
-        const int q = to_crop(sp.row + sp.xl);
-        std::fill(b.v.begin() + q, b.v.begin() + q + (sp.xr - sp.xl + 1), 1);
-      }
-    }
-    (void)id;
-    return b;
-  };
+// One component's closed outline, as a dense chain in picture coordinates.
+struct Extracted {
+  std::vector<Vec2> chain;
+  double enclosed = 0.0;
+  double line_width = 0.0;
+  bool silhouette = false;
+  std::vector<std::string> notes;  // warnings
+  std::vector<std::string> repairs;
+  int comp = -1;
+};
 
-  struct Extracted {
-    std::vector<Vec2> chain;
-    double enclosed = 0.0;
-    double line_width = 0.0;
-    bool silhouette = false;
-    std::vector<std::string> notes;  // warnings
-    std::vector<std::string> repairs;
-    int comp = -1;
-  };
-  auto to_chain = [&](const Bitmap& region, const Component& c) {
-    std::vector<Vec2> chain;
-    for (auto [x, y] : internal::TraceOuterBoundary(region)) {
-      chain.emplace_back(x + c.x0 - 1 + 0.5, y + c.y0 - 1 + 0.5);
-    }
-    return chain;
-  };
-  double t_thin = 0, t_spur = 0, t_trace = 0;
-  auto now = [] { return std::chrono::steady_clock::now(); };
-  auto ms = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+// The outline of one component: a drawn line is thinned, its extra lines removed (an open line's
+// gap closed first) and the edge of what it encloses traced; a silhouette's edge is traced as it
+// is. Keeps the time of each stage.
+class Extractor {
+ public:
+  Extractor(const Components& parts, const ContourOptions& o) : parts_(parts), o_(o) {}
 
   // Drawn outline: thin, remove extra lines, fill what the line encloses, trace its edge.
-  auto extract_line = [&](int id) -> Result<Extracted> {
-    const Component& c = comps[id];
+  Result<Extracted> Line(int id) {
+    const Component& c = parts_.comps[id];
     Extracted e;
     e.comp = id;
-    auto t0 = now();
-    Bitmap b = crop(c, id, false);
+    auto t0 = Now();
+    Bitmap b = Crop(c, false);
     internal::HilditchThin(b);
-    auto t1 = now();
-    t_thin += ms(t0, t1);
+    auto t1 = Now();
+    t_thin += Ms(t0, t1);
     Bitmap skeleton;
     if (c.kind == Component::kOpen) skeleton = b;  // for finding its ends
     internal::RemoveSpurs(b);
@@ -409,123 +401,218 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
       return InvalidArgument("not closed: the line in " + Box(c) + " encloses nothing");
     }
     if (kept == 0) {
-      // Open line: its two far ends are the gap.
-      std::vector<int> dist(skeleton.v.size());
-      int start = 0;
-      while (!skeleton.v[start]) ++start;
-      const auto [a, da] = Farthest(skeleton, start, dist);
-      const auto [bb, len] = Farthest(skeleton, a, dist);
-      const int ax = a % skeleton.stride - 1, ay = a / skeleton.stride - 1;
-      const int bx = bb % skeleton.stride - 1, by = bb / skeleton.stride - 1;
-      const Vec2 pa(ax + c.x0 - 1 + 0.5, ay + c.y0 - 1 + 0.5);
-      const Vec2 pb(bx + c.x0 - 1 + 0.5, by + c.y0 - 1 + 0.5);
-      const double gap = (pa - pb).norm();
-      const double limit = o.max_gap_fraction * (len + gap);
-      if (gap > limit) {
-        return InvalidArgument("not closed: gap of " + Num(gap, 0) + " px between " + Pt(pa) +
-                               " and " + Pt(pb) + " (closing limit " + Num(limit, 0) + " px = " +
-                               Num(100 * o.max_gap_fraction, 0) + " % of the perimeter)");
-      }
-      b = skeleton;
-      DrawLine(b, ax, ay, bx, by);
+      if (Status s = CloseGap(c, skeleton, e); !s) return s.error();
+      b = std::move(skeleton);
       internal::RemoveSpurs(b);
       kept = b.Count();
-      e.repairs.push_back("closed a gap of " + Num(gap) + " px between " + Pt(pa) + " and " +
-                          Pt(pb));
       if (kept == 0)
         return InvalidArgument("not closed: the line in " + Box(c) + " encloses nothing");
     }
-    auto t2 = now();
-    t_spur += ms(t1, t2);
+    auto t2 = Now();
+    t_spur += Ms(t1, t2);
     e.line_width = double(c.area) / double(std::max<int64_t>(1, kept));
     // Moore tracing hugs the outside, so inner loops and lines are never entered.
-    e.chain = to_chain(b, c);
+    e.chain = ToChain(b, c);
     e.enclosed = std::abs(internal::SignedArea(e.chain));
     if (c.significant > 1) {
       e.notes.push_back("inner loops ignored: the outline in " + Box(c) + " encloses " +
                         std::to_string(c.significant) +
                         " separate regions; its outer edge is used");
     }
-    t_trace += ms(t2, now());
+    t_trace += Ms(t2, Now());
     return e;
-  };
-  auto extract_silhouette = [&](int id) {
-    const Component& c = comps[id];
+  }
+
+  // Filled shape: its edge, holes filled.
+  Extracted Silhouette(int id) {
+    const Component& c = parts_.comps[id];
     Extracted e;
     e.comp = id;
     e.silhouette = true;
-    auto t0 = now();
-    Bitmap b = crop(c, id, true);
+    auto t0 = Now();
+    Bitmap b = Crop(c, true);
     e.line_width = 0.0;
-    e.chain = to_chain(b, c);
+    e.chain = ToChain(b, c);
     e.enclosed = std::abs(internal::SignedArea(e.chain));
     if (c.significant > 0) {
       e.notes.push_back("holes ignored: the filled shape in " + Box(c) + " has " +
                         std::to_string(c.significant) + " hole(s); its outer edge is used");
     }
-    t_trace += ms(t0, now());
+    t_trace += Ms(t0, Now());
     return e;
-  };
+  }
 
+  double t_thin = 0, t_spur = 0, t_trace = 0;  // [ms]
+
+ private:
+  static std::chrono::steady_clock::time_point Now() { return std::chrono::steady_clock::now(); }
+  static double Ms(std::chrono::steady_clock::time_point a,
+                   std::chrono::steady_clock::time_point b) {
+    return std::chrono::duration<double, std::milli>(b - a).count();
+  }
+
+  // Crop of one component: its ink, plus its slivers of paper (or all its holes).
+  Bitmap Crop(const Component& c, bool fill_all_holes) const {
+    const int s = parts_.stride;
+    Bitmap b(c.x1 - c.x0 + 1, c.y1 - c.y0 + 1);
+    const int cs = b.stride;
+    auto to_crop = [&](int p) { return (p / s - c.y0 + 1) * cs + (p % s - c.x0 + 1); };
+    for (size_t k = c.first_pixel; k < c.first_pixel + size_t(c.area); ++k)
+      b.v[to_crop(parts_.ink[k])] = 1;
+    for (int hid : c.holes) {
+      const Hole& h = parts_.holes[hid];
+      if (h.significant && !fill_all_holes) continue;
+      for (size_t k = h.first_span; k < h.first_span + h.spans; ++k) {
+        const Span& sp = parts_.spans[k];
+        const int q = to_crop(sp.row + sp.xl);
+        std::fill(b.v.begin() + q, b.v.begin() + q + (sp.xr - sp.xl + 1), 1);
+      }
+    }
+    return b;
+  }
+
+  // The outer boundary of a crop of `c`, in picture coordinates (pixel centres).
+  static std::vector<Vec2> ToChain(const Bitmap& region, const Component& c) {
+    std::vector<Vec2> chain;
+    for (auto [x, y] : internal::TraceOuterBoundary(region)) {
+      chain.emplace_back(x + c.x0 - 1 + 0.5, y + c.y0 - 1 + 0.5);
+    }
+    return chain;
+  }
+
+  // Open line: its two far ends are the gap. Closes it in `skeleton` (the thinned line) when it is
+  // within the closing limit, noting the repair in `e`; otherwise the refusal.
+  Status CloseGap(const Component& c, Bitmap& skeleton, Extracted& e) const {
+    std::vector<int> dist(skeleton.v.size());
+    int start = 0;
+    while (!skeleton.v[start]) ++start;
+    const auto [a, da] = Farthest(skeleton, start, dist);
+    const auto [bb, len] = Farthest(skeleton, a, dist);
+    const int ax = a % skeleton.stride - 1, ay = a / skeleton.stride - 1;
+    const int bx = bb % skeleton.stride - 1, by = bb / skeleton.stride - 1;
+    const Vec2 pa(ax + c.x0 - 1 + 0.5, ay + c.y0 - 1 + 0.5);
+    const Vec2 pb(bx + c.x0 - 1 + 0.5, by + c.y0 - 1 + 0.5);
+    const double gap = (pa - pb).norm();
+    const double limit = o_.max_gap_fraction * (len + gap);
+    if (gap > limit) {
+      return InvalidArgument("not closed: gap of " + Num(gap, 0) + " px between " + Pt(pa) +
+                             " and " + Pt(pb) + " (closing limit " + Num(limit, 0) +
+                             " px = " + Num(100 * o_.max_gap_fraction, 0) + " % of the perimeter)");
+    }
+    DrawLine(skeleton, ax, ay, bx, by);
+    e.repairs.push_back("closed a gap of " + Num(gap) + " px between " + Pt(pa) + " and " + Pt(pb));
+    return Status::Ok();
+  }
+
+  const Components& parts_;
+  const ContourOptions& o_;
+};
+
+// The candidates (every component but the specks), largest first (ink and holes).
+std::vector<int> Candidates(const Components& parts) {
+  const std::vector<Component>& comps = parts.comps;
   std::vector<int> order;
   for (size_t k = 0; k < comps.size(); ++k)
     if (comps[k].kind != Component::kSpeck) order.push_back(static_cast<int>(k));
-  if (order.empty()) {
-    return InvalidArgument("nothing drawn: no ink found in the " + std::to_string(r.width) + " x " +
-                           std::to_string(r.height) + " picture (" + r.binarization + ")");
-  }
-  // Closed candidates by enclosed area; the largest open line competes if it could be bigger.
   std::sort(order.begin(), order.end(), [&](int a, int b) {
     return comps[a].area + comps[a].hole_area > comps[b].area + comps[b].hole_area;
   });
+  return order;
+}
+
+// The outline that encloses the most, of the candidates in `order`: closed candidates by enclosed
+// area; the largest open line competes if it could be bigger. Without one, the open line's
+// refusal, if any.
+struct Selection {
   std::optional<Extracted> best;
   std::optional<Error> open_error;
+};
+Selection SelectLargest(const Components& parts, const std::vector<int>& order, Extractor& ex) {
+  Selection sel;
+  std::optional<Extracted>& best = sel.best;
   int open_tried = -1;
   for (int id : order) {
-    const Component& c = comps[id];
+    const Component& c = parts.comps[id];
     const double bound = double(c.x1 - c.x0 + 1) * (c.y1 - c.y0 + 1);
     if (best && bound <= best->enclosed) break;
     if (c.kind == Component::kOpen) {
       if (open_tried >= 0) continue;
       open_tried = id;
-      auto e = extract_line(id);
+      auto e = ex.Line(id);
       if (!e.ok()) {
-        if (!open_error) open_error = e.error();
+        if (!sel.open_error) sel.open_error = e.error();
         continue;
       }
       if (!best || e->enclosed > best->enclosed) best = std::move(*e);
     } else if (c.kind == Component::kOutline) {
-      auto e = extract_line(id);
+      auto e = ex.Line(id);
       if (!e.ok()) continue;
       if (!best || e->enclosed > best->enclosed) best = std::move(*e);
     } else {
-      auto e = extract_silhouette(id);
+      auto e = ex.Silhouette(id);
       if (!best || e.enclosed > best->enclosed) best = std::move(e);
     }
   }
-  r.timings.push_back({"thin", t_thin});
-  r.timings.push_back({"spurs", t_spur});
-  r.timings.push_back({"trace", t_trace});
-  sw.Lap("select", r);
-  r.timings.back().ms = std::max(0.0, r.timings.back().ms - t_thin - t_spur - t_trace);
-  if (!best) {
-    if (open_error) return *open_error;
-    return InvalidArgument("nothing closed drawn: no outline or filled shape found");
-  }
+  return sel;
+}
+
+// A warning for each candidate other than the one used.
+void WarnIgnored(const Components& parts, const std::vector<int>& order, int used,
+                 std::vector<std::string>& warnings) {
   for (int id : order) {
-    if (id == best->comp) continue;
-    const Component& c = comps[id];
+    if (id == used) continue;
+    const Component& c = parts.comps[id];
     const char* what = c.kind == Component::kOpen      ? "an open line"
                        : c.kind == Component::kOutline ? "a closed outline"
                                                        : "a filled shape";
-    r.warnings.push_back(std::string("several shapes: ignored ") + what + " in " + Box(c) +
-                         "; the largest is used");
+    warnings.push_back(std::string("several shapes: ignored ") + what + " in " + Box(c) +
+                       "; the largest is used");
   }
-  for (auto& n : best->notes) r.warnings.push_back(std::move(n));
-  for (auto& n : best->repairs) r.repairs.push_back(std::move(n));
-  r.filled_silhouette = best->silhouette;
-  r.line_width_px = best->line_width;
-  if (Status st = Finish(std::move(best->chain), o, r); !st) return st.error();
+}
+
+}  // namespace
+
+// decode, binarize, components (and their kinds), then per candidate thin, spurs (extra-line
+// removal) and trace, the largest kept (select), then vectorize: each stage's time in r.timings.
+Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const ContourOptions& o) {
+  if (Status s = CheckOptions(o); !s) return s.error();
+  ContourResult r;
+  Stopwatch sw;
+  Result<internal::GrayImage> img = Decode(bytes, o, r);
+  if (!img.ok()) return img.error();
+  sw.Lap("decode", r);
+
+  Bitmap bm = internal::Binarize(*img, o, &r.binarization, &r.warnings);
+  img = InvalidArgument("");  // release the grey picture
+  sw.Lap("binarize", r);
+
+  Components parts = FindComponents(bm);
+  sw.Lap("components", r);
+  Classify(parts, r.width, r.height, r.warnings);
+
+  const std::vector<int> order = Candidates(parts);
+  if (order.empty()) {
+    return InvalidArgument("nothing drawn: no ink found in the " + std::to_string(r.width) + " x " +
+                           std::to_string(r.height) + " picture (" + r.binarization + ")");
+  }
+  Extractor ex(parts, o);
+  Selection sel = SelectLargest(parts, order, ex);
+  r.timings.push_back({"thin", ex.t_thin});
+  r.timings.push_back({"spurs", ex.t_spur});
+  r.timings.push_back({"trace", ex.t_trace});
+  sw.Lap("select", r);
+  r.timings.back().ms = std::max(0.0, r.timings.back().ms - ex.t_thin - ex.t_spur - ex.t_trace);
+  if (!sel.best) {
+    if (sel.open_error) return *sel.open_error;
+    return InvalidArgument("nothing closed drawn: no outline or filled shape found");
+  }
+  Extracted& best = *sel.best;
+  WarnIgnored(parts, order, best.comp, r.warnings);
+  for (auto& n : best.notes) r.warnings.push_back(std::move(n));
+  for (auto& n : best.repairs) r.repairs.push_back(std::move(n));
+  r.filled_silhouette = best.silhouette;
+  r.line_width_px = best.line_width;
+  if (Status st = Finish(std::move(best.chain), o, r); !st) return st.error();
   sw.Lap("vectorize", r);
   return r;
 }

@@ -1,0 +1,86 @@
+// sim_bench: what the modes share (timing, the test meshes, the integrators as the benches name
+// them, the work-precision scenes and their reference runs) and the modes themselves, one file
+// each. Measured, not asserted; one thread throughout (the library has none).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "sim/sim.h"
+
+namespace sim_bench {
+
+using rheo::TetMesh;
+using rheo::Vec3;
+using namespace rheo::sim;
+
+// The calling thread's CPU time [s].
+double CpuSeconds();
+
+double Median(std::vector<double> v);
+double Percentile(std::vector<double> v, double q);
+
+// A 10 cm x 6 cm x 8 cm box with about `tets` tetrahedra.
+TetMesh BoxWithTets(int tets);
+
+// A box of the 10:6:8 shape with about `tets` tetrahedra in cells of edge `cell` [m]: the object
+// grows with the count, the element size (and so the stiffness per mass) stays.
+TetMesh BoxWithCell(int tets, double cell);
+
+// An integrator as the benches name it: the scheme plus the implicit-damping switch.
+struct Method {
+  const char* name;
+  Integrator integrator;
+  double implicit_damping;
+  double implicit_order;
+  void Apply(Parameters& p) const {
+    p.implicit_damping = implicit_damping;
+    p.implicit_order = implicit_order;
+  }
+};
+inline constexpr Method kMethods[] = {
+    {"symplectic-euler", Integrator::kSymplecticEuler, 0.0, 2.0},
+    {"symplectic+impl.damping", Integrator::kSymplecticEuler, 1.0, 2.0},
+    {"implicit BDF1 (order 1)", Integrator::kImplicitEuler, 0.0, 1.0},
+    {"implicit BDF2 (default)", Integrator::kImplicitEuler, 0.0, 2.0},
+};
+
+// Scenes for work-precision: the same mesh and parameters, 0.5 s.
+struct Scene {
+  const char* name;
+  TetMesh mesh;
+  Parameters params;
+  double drop = 0.0;         // lowest point above the floor at t = 0 [m]
+  double press_force = 0.0;  // total downward force on the top nodes, ramped over 0.1 s [N]
+};
+
+std::vector<Scene> Scenes();
+
+struct RunResult {
+  std::vector<Vec3> x;
+  double cpu = 0.0;  // [s]
+  int64_t substeps = 0;
+  int64_t restores = 0;
+  int64_t iterations = 0;  // CG iterations
+};
+
+RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_end,
+                   double cg_tol = -1.0);
+
+double RmsError(const std::vector<Vec3>& a, const std::vector<Vec3>& b, double size);
+
+// The modes (main.cc maps the command line onto them); each returns the exit status.
+int Speed(int max_tets);                // speed.cc
+int Kernels(int target);                // kernels.cc
+int Preconditioners(int max_tets);      // precond.cc
+int Precision(const std::string& svg);  // precision.cc
+int ParameterChange();                  // params.cc
+int CgSweep();                          // cg.cc
+#ifdef RHEO_HAVE_BULLET
+int Bullet();       // bullet.cc
+int BulletCheck();  // bullet.cc
+#endif
+
+}  // namespace sim_bench

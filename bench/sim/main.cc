@@ -1,0 +1,39 @@
+// sim_bench: measured, not asserted.
+//   sim_bench speed [max_tets]       median wall time of one 1 ms tick vs mesh size
+//   sim_bench precision [svg_path]   work-precision: CPU time per simulated second vs error
+//   sim_bench bullet                 btSoftBody on the same tets and dt, vs the same reference
+//   sim_bench kernels [tets]         time of each force kernel and Jacobian product
+//   sim_bench cg                     implicit integrator: CG tolerance vs error and cost
+//   sim_bench precond [max_tets]     CG preconditioners on one tick's system
+// One thread throughout (the library has none).
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "bench.h"
+
+using namespace sim_bench;
+
+int main(int argc, char** argv) {
+  const std::string mode = argc > 1 ? argv[1] : "speed";
+  if (mode == "speed") return Speed(argc > 2 ? std::atoi(argv[2]) : 100000);
+  if (mode == "cg") return CgSweep();
+  if (mode == "params") return ParameterChange();
+  if (mode == "kernels") return Kernels(argc > 2 ? std::atoi(argv[2]) : 5000);
+  if (mode == "precond") return Preconditioners(argc > 2 ? std::atoi(argv[2]) : 100000);
+  if (mode == "precision") return Precision(argc > 2 ? argv[2] : "sim_work_precision.svg");
+#ifdef RHEO_HAVE_BULLET
+  if (mode == "bullet") return Bullet();
+  if (mode == "bullet-check") return BulletCheck();
+#else
+  if (mode == "bullet") {
+    std::fprintf(stderr, "sim_bench: built without Bullet (libbullet-dev)\n");
+    return 1;
+  }
+#endif
+  std::fprintf(
+      stderr,
+      "usage: sim_bench speed [max_tets] | kernels [tets] | precond [max_tets] | precision [svg] | "
+      "cg | params | bullet\n");
+  return 1;
+}

@@ -1,0 +1,104 @@
+// `rheoctl status`, `rheoctl watch`, `rheoctl health`: the daemon, its frames, its health.
+#include <cstdint>
+#include <cstdio>
+#include <iostream>
+
+#include "grpc/health/v1/health.grpc.pb.h"
+#include "rheo/v1/daemon.grpc.pb.h"
+#include "rheo/v1/frames.grpc.pb.h"
+#include "rheoctl.h"
+
+namespace rheoctl {
+namespace {
+
+void PrintPercentiles(const char* name, const rheo::v1::Percentiles& p) {
+  std::printf("  %-13s p50 %8.1f us  p99 %8.1f us  p99.9 %8.1f us  max %8.1f us\n", name,
+              p.p50_us(), p.p99_us(), p.p999_us(), p.max_us());
+}
+
+int ShowStatus(const Global& g, bool json) {
+  rheo::v1::DaemonStatus st;
+  grpc::Status s = Unary<rheo::v1::DaemonService>(g, &rheo::v1::DaemonService::Stub::GetStatus,
+                                                  rheo::v1::GetStatusRequest(), &st);
+  if (!s.ok()) return Fail(s);
+  if (json) {
+    std::cout << ToJson(st, true);
+    return 0;
+  }
+  const auto& l = st.loop();
+  std::printf("rheod %s at %s, up %.1f s, data dir %s\n", st.version().c_str(),
+              st.listen_address().c_str(), st.uptime_s(), st.data_dir().c_str());
+  std::printf("device: %s\n", rheo::v1::DeviceKind_Name(st.device()).c_str());
+  std::printf(
+      "loop: %.0f Hz, %llu ticks, %llu late, %llu overruns, %llu skipped; SCHED_FIFO %s, "
+      "memory locked %s\n",
+      l.rate_hz(), (unsigned long long)l.ticks(), (unsigned long long)l.late_ticks(),
+      (unsigned long long)l.overruns(), (unsigned long long)l.skipped_ticks(),
+      l.realtime_priority() ? "yes" : "no", l.memory_locked() ? "yes" : "no");
+  PrintPercentiles("period", l.period());
+  PrintPercentiles("wake latency", l.wake_latency());
+  PrintPercentiles("tick work", l.work());
+  if (!l.notes().empty()) std::printf("  notes: %s\n", l.notes().c_str());
+  if (l.restores() > 0) {
+    std::printf(
+        "  restores: %llu (an object's state went non-finite or too fast and was put back to its "
+        "last good state; see each object's restores in `rheoctl watch`)\n",
+        (unsigned long long)l.restores());
+  }
+  std::printf("scene objects %u, stored objects %u, jobs %u, frame clients %u\n",
+              st.scene_objects(), st.stored_objects(), st.running_jobs(), st.frame_clients());
+  return 0;
+}
+
+int Watch(const Global& g, double rate, uint64_t count, bool positions) {
+  auto stub = rheo::v1::FrameService::NewStub(Connect(g));
+  grpc::ClientContext ctx;
+  rheo::v1::WatchFramesRequest req;
+  req.set_rate_hz(rate);
+  req.set_max_frames(count);
+  req.set_positions(positions);
+  auto reader = stub->WatchFrames(&ctx, req);
+  rheo::v1::Frame f;
+  while (reader->Read(&f)) {
+    std::cout << ToJson(f, false) << "\n";
+    std::cout.flush();
+  }
+  grpc::Status s = reader->Finish();
+  return s.ok() ? 0 : Fail(s);
+}
+
+int Health(const Global& g) {
+  grpc::health::v1::HealthCheckResponse r;
+  grpc::Status s = Unary<grpc::health::v1::Health>(g, &grpc::health::v1::Health::Stub::Check,
+                                                   grpc::health::v1::HealthCheckRequest(), &r);
+  if (!s.ok()) return Fail(s);
+  std::cout << grpc::health::v1::HealthCheckResponse::ServingStatus_Name(r.status()) << "\n";
+  return r.status() == grpc::health::v1::HealthCheckResponse::SERVING ? 0 : 1;
+}
+
+}  // namespace
+
+void AddStatusCommands(CLI::App& app, const Global& g) {
+  auto json = std::make_shared<bool>(false);
+  auto* status = app.add_subcommand("status", "daemon version, loop timing, device, counts");
+  status->add_flag("--json", *json, "print the DaemonStatus message as JSON");
+  status->callback([&g, json] { g_exit_code = ShowStatus(g, *json); });
+
+  struct WatchArgs {
+    double rate = 10;
+    uint64_t count = 0;
+    bool positions = false;
+  };
+  auto w = std::make_shared<WatchArgs>();
+  auto* watch = app.add_subcommand("watch", "stream frames as JSON lines (Ctrl-C to stop)");
+  watch->add_option("--rate", w->rate, "frames per second, 1..1000")->capture_default_str();
+  watch->add_option("--count", w->count, "stop after this many frames (0 = never)")
+      ->capture_default_str();
+  watch->add_flag("--positions", w->positions, "include per-vertex positions");
+  watch->callback([&g, w] { g_exit_code = Watch(g, w->rate, w->count, w->positions); });
+
+  auto* health = app.add_subcommand("health", "standard gRPC health check");
+  health->callback([&g] { g_exit_code = Health(g); });
+}
+
+}  // namespace rheoctl
