@@ -263,7 +263,11 @@ int main(int argc, char** argv) {
       return 1;
     }
     for (bool loaded : {false, true}) {
-      std::string label = "~" + std::to_string(target) + " tets, " + (loaded ? "loaded" : "idle");
+      // Appended rather than "~" + std::string (GCC 12 flags that with a false -Wrestrict).
+      std::string label = "~";
+      label += std::to_string(target);
+      label += " tets, ";
+      label += loaded ? "loaded" : "idle";
       if (RunScenario(strokes, *obj, loaded, seconds, label) != 0) return 1;
     }
   }
