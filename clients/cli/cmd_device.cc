@@ -130,14 +130,18 @@ int DeviceHand(const Global& g, const rheo::v1::SimulatedHandRequest& req, doubl
   grpc::Status s = Unary<rheo::v1::DeviceService>(g, &DevStub::SimulatedHand, req, &r);
   if (!s.ok()) return Fail(s);
   if (req.has_press())
-    std::printf("surface under the tool at y = %.4f m; hand target y = %.4f m (device frame)\n",
-                r.surface_y(), r.target().position().y());
+    std::printf(
+        "pressing object %u: its surface at y = %.4f m; hand target (%.4f, %.4f, %.4f) m (device "
+        "frame)\n",
+        r.instance_id(), r.surface_y(), r.target().position().x(), r.target().position().y(),
+        r.target().position().z());
+  if (report_s < 0) report_s = r.seconds() + 0.5;  // until the hand arrived, and a little more
   if (report_s <= 0) return 0;
-  // Report the contact as the hand moves: one line every 100 ms.
+  // Report the contact as the hand moves: one line every 200 ms.
   const auto end = std::chrono::steady_clock::now() +
                    std::chrono::milliseconds(static_cast<int64_t>(report_s * 1000));
   while (std::chrono::steady_clock::now() < end) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
     rheo::v1::DeviceStatus st;
     s = Unary<rheo::v1::DeviceService>(g, &DevStub::GetDeviceStatus,
                                        rheo::v1::GetDeviceStatusRequest(), &st);
@@ -156,7 +160,8 @@ void AddDeviceCommand(CLI::App& app, const Global& g) {
     std::string lease_id, lease_name;
     double duration = 0, depth = 0.005, seconds = 1.0, report = -1;
     bool clear = false, release_hand = false, json = false;
-    std::vector<double> hold;
+    std::vector<double> hold, at;
+    uint32_t object = 0;
   };
   auto a = std::make_shared<DeviceArgs>();
   auto* device = app.add_subcommand("device", "the haptic device: status, lease, stop, hand");
@@ -187,19 +192,30 @@ void AddDeviceCommand(CLI::App& app, const Global& g) {
   lease_rel->add_option("LEASE", a->lease_id)->required();
   lease_rel->callback([&g, a] { g_exit_code = LeaseRelease(g, a->lease_id); });
   auto* dev_push = device->add_subcommand(
-      "push", "sim-spidar-g: the emulated hand presses the tool into the object below it");
+      "push",
+      "sim-spidar-g: the emulated hand presses the tool into an object (the one below the tool, "
+      "else the first; --object N or --at X Z to choose)");
   dev_push->add_option("--depth", a->depth, "how far below the surface the hand aims [m]")
       ->capture_default_str();
   dev_push->add_option("--seconds", a->seconds, "ramp time [s]")->capture_default_str();
+  dev_push->add_option("--object", a->object, "press this scene instance, at the top of it");
+  dev_push->add_option("--at", a->at, "press at this scene point x z [m]")->expected(2);
   dev_push->add_option("--lease", a->lease_id, "lease id (needed while someone holds the lease)");
-  dev_push->add_option("--report", a->report,
-                       "print the contact every 100 ms for this long [s] (default: ramp + 1 s)");
+  dev_push->add_option(
+      "--report", a->report,
+      "print the contact every 200 ms for this long [s] (default: until the hand arrived + "
+      "0.5 s)");
   dev_push->callback([&g, a] {
     rheo::v1::SimulatedHandRequest req;
     req.set_lease_id(a->lease_id);
     req.mutable_press()->set_depth_m(a->depth);
     req.mutable_press()->set_seconds(a->seconds);
-    g_exit_code = DeviceHand(g, req, a->report < 0 ? a->seconds + 1.0 : a->report);
+    req.mutable_press()->set_instance_id(a->object);
+    if (a->at.size() == 2) {
+      req.mutable_press()->mutable_at()->set_x(a->at[0]);
+      req.mutable_press()->mutable_at()->set_z(a->at[1]);
+    }
+    g_exit_code = DeviceHand(g, req, a->report);
   });
   auto* dev_hand = device->add_subcommand("hand", "sim-spidar-g: hold the grip or let it go");
   dev_hand->add_option("--hold", a->hold, "hold at x y z, device frame [m]")->expected(3);

@@ -1,7 +1,10 @@
 // `rheoctl status`, `rheoctl watch`, `rheoctl health`: the daemon, its frames, its health.
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
+#include <map>
+#include <string>
 
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "rheo/v1/daemon.grpc.pb.h"
@@ -50,17 +53,66 @@ int ShowStatus(const Global& g, bool json) {
   return 0;
 }
 
-int Watch(const Global& g, double rate, uint64_t count, bool positions) {
+// One line a frame for people: time, each object's size, height range, volume and energy, the
+// tool, the loop's late ticks.
+std::string FrameLine(const rheo::v1::Frame& f, const std::map<uint32_t, uint32_t>& triangles_of) {
+  char b[256];
+  std::snprintf(b, sizeof b, "tick %llu  t %.3f s%s", (unsigned long long)f.stamp().tick(),
+                f.stamp().sim_time(), f.paused() ? " (paused)" : "");
+  std::string line = b;
+  line +=
+      "  " + std::to_string(f.objects_size()) + (f.objects_size() == 1 ? " object" : " objects");
+  for (const auto& o : f.objects()) {
+    float lo = 0, hi = 0;
+    for (int k = 1; k < o.positions_size(); k += 3) {
+      const float y = o.positions(k);
+      if (k == 1 || y < lo) lo = y;
+      if (k == 1 || y > hi) hi = y;
+    }
+    std::snprintf(b, sizeof b, "  [#%u: %d vertices", o.instance_id(), o.positions_size() / 3);
+    line += b;
+    if (auto it = triangles_of.find(o.instance_id()); it != triangles_of.end())
+      line += ", " + std::to_string(it->second) + " triangles";
+    if (o.positions_size() > 0) {
+      std::snprintf(b, sizeof b, ", y %.4f..%.4f m", lo, hi);
+      line += b;
+    }
+    std::snprintf(b, sizeof b, ", volume %.3g m^3, KE %.2g J%s%s]", o.volume(), o.kinetic_energy(),
+                  o.sleeping() ? ", asleep" : "",
+                  o.restores() ? (", " + std::to_string(o.restores()) + " restores").c_str() : "");
+    line += b;
+  }
+  if (f.tool().present()) {
+    const auto& force = f.tool().wrench().force();
+    std::snprintf(b, sizeof b, "  tool: contact %s, hand force %.2f N",
+                  f.tool().in_contact() ? "yes" : "no",
+                  std::sqrt(force.x() * force.x() + force.y() * force.y() + force.z() * force.z()));
+    line += b;
+  }
+  line += "  late ticks " + std::to_string(f.loop().late_ticks());
+  if (f.dropped_frames()) line += ", dropped " + std::to_string(f.dropped_frames());
+  return line;
+}
+
+int Watch(const Global& g, double rate, uint64_t count, bool positions, bool json) {
   auto stub = rheo::v1::FrameService::NewStub(Connect(g));
   grpc::ClientContext ctx;
   rheo::v1::WatchFramesRequest req;
   req.set_rate_hz(rate);
   req.set_max_frames(count);
-  req.set_positions(positions);
+  // The summary shows each object's height range, so it asks for the positions.
+  req.set_positions(positions || !json);
   auto reader = stub->WatchFrames(&ctx, req);
   rheo::v1::Frame f;
+  std::map<uint32_t, uint32_t> triangles_of;  // instance -> surface triangles (from topology)
   while (reader->Read(&f)) {
-    std::cout << ToJson(f, false) << "\n";
+    if (json) {
+      std::cout << ToJson(f, false) << "\n";
+    } else {
+      for (const auto& t : f.topology())
+        triangles_of[t.instance_id()] = static_cast<uint32_t>(t.triangles_size() / 3);
+      std::cout << FrameLine(f, triangles_of) << "\n";
+    }
     std::cout.flush();
   }
   grpc::Status s = reader->Finish();
@@ -88,14 +140,18 @@ void AddStatusCommands(CLI::App& app, const Global& g) {
     double rate = 10;
     uint64_t count = 0;
     bool positions = false;
+    bool json = false;
   };
   auto w = std::make_shared<WatchArgs>();
-  auto* watch = app.add_subcommand("watch", "stream frames as JSON lines (Ctrl-C to stop)");
+  auto* watch = app.add_subcommand(
+      "watch",
+      "stream frames, a line each (--json: the Frame messages as JSON lines; Ctrl-C stops)");
   watch->add_option("--rate", w->rate, "frames per second, 1..1000")->capture_default_str();
   watch->add_option("--count", w->count, "stop after this many frames (0 = never)")
       ->capture_default_str();
-  watch->add_flag("--positions", w->positions, "include per-vertex positions");
-  watch->callback([&g, w] { g_exit_code = Watch(g, w->rate, w->count, w->positions); });
+  watch->add_flag("--json", w->json, "print each Frame message as a JSON line");
+  watch->add_flag("--positions", w->positions, "with --json: include per-vertex positions");
+  watch->callback([&g, w] { g_exit_code = Watch(g, w->rate, w->count, w->positions, w->json); });
 
   auto* health = app.add_subcommand("health", "standard gRPC health check");
   health->callback([&g] { g_exit_code = Health(g); });

@@ -207,7 +207,7 @@ Result<TetMesh> DecodeMeshBlob(std::string_view blob) {
   TetMesh m;
   m.positions.resize(nv);
   for (auto& p : m.positions) {
-    double x, y, z;
+    double x = 0.0, y = 0.0, z = 0.0;
     Take(blob, pos, x);
     Take(blob, pos, y);
     Take(blob, pos, z);

@@ -259,8 +259,8 @@ TEST_F(RheodTest, RheoctlStatusWatchAndHealth) {
   ASSERT_EQ(human.exit_code, 0) << human.err;
   EXPECT_NE(human.out.find("p99.9"), std::string::npos);
 
-  RunResult w = RunProgram(
-      {RHEOCTL_PATH, "--server", daemon_->address(), "watch", "--rate", "200", "--count", "3"});
+  RunResult w = RunProgram({RHEOCTL_PATH, "--server", daemon_->address(), "watch", "--rate", "200",
+                            "--count", "3", "--json"});
   ASSERT_EQ(w.exit_code, 0) << w.err;
   int lines = 0;
   std::istringstream in(w.out);
@@ -270,6 +270,19 @@ TEST_F(RheodTest, RheoctlStatusWatchAndHealth) {
     ++lines;
   }
   EXPECT_EQ(lines, 3);
+
+  // Without --json: one line a frame for people, no JSON.
+  RunResult summary = RunProgram(
+      {RHEOCTL_PATH, "--server", daemon_->address(), "watch", "--rate", "200", "--count", "2"});
+  ASSERT_EQ(summary.exit_code, 0) << summary.err;
+  std::istringstream sin(summary.out);
+  lines = 0;
+  for (std::string line; std::getline(sin, line); ++lines) {
+    EXPECT_EQ(line.rfind("tick ", 0), 0u) << line;
+    EXPECT_NE(line.find(" objects"), std::string::npos) << line;
+    EXPECT_EQ(line.find('{'), std::string::npos) << line;
+  }
+  EXPECT_EQ(lines, 2);
 
   RunResult h = RunProgram({RHEOCTL_PATH, "--server", daemon_->address(), "health"});
   EXPECT_EQ(h.exit_code, 0);

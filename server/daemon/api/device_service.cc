@@ -254,78 +254,91 @@ grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext*,
     }
     return std::nullopt;
   };
+  auto triangles_of = [this](uint32_t instance_id) {
+    auto entry = ctx_.scene->Find(instance_id);
+    return entry ? entry->triangles : std::vector<uint32_t>();
+  };
   Vec3 line = tool;
   PressTarget target;
   if (press.has_at()) {
     line = Vec3(press.at().x(), 0.0, press.at().z());
     if (!line.allFinite())
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "press.at must be finite");
-    target = FindPressTarget(f, line, t.tip_radius);
+    target = FindPressTarget(f, line, triangles_of);
     if (!target.found)
       return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
-                          "no scene object lies under press.at (within " +
-                              std::to_string(std::lround(target.reach * 1e3)) + " mm)");
+                          "no scene object lies under press.at");
   } else if (press.instance_id() != 0) {
     auto top = object_top(press.instance_id());
     if (!top)
       return grpc::Status(grpc::StatusCode::NOT_FOUND, "no scene object with instance_id " +
                                                            std::to_string(press.instance_id()));
     line = *top;
-    target = FindPressTarget(f, line, t.tip_radius);
+    target = FindPressTarget(f, line, triangles_of);
   } else {
-    target = FindPressTarget(f, tool, t.tip_radius);
+    target = FindPressTarget(f, tool, triangles_of);
     if (!target.found) {
       auto top = object_top(f.objects[0].instance_id);
       if (!top) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "the scene is changing; retry");
       line = *top;
-      target = FindPressTarget(f, line, t.tip_radius);
+      target = FindPressTarget(f, line, triangles_of);
     }
   }
   if (!target.found)
     return grpc::Status(grpc::StatusCode::UNAVAILABLE, "the object moved away; retry");
 
-  // The hand's path in the device frame: up to a safe height if it is lower, over the press line
-  // at that height, then down to `depth` below the surface.
+  // The hand's path (device frame): over every object to the press line, then down; the
+  // workspace is re-placed over the line first when the object is out of the device's reach.
   const Vec3 origin = ToVec(t.tool_origin);
-  const drivers::GripSnapshot grip = emu->Snapshot();
-  const drivers::Pose start = grip.pose;
   double highest = -1e30;
   for (size_t k = 1; k < f.positions.size(); k += 3)
     highest = std::max(highest, double(f.positions[k]));
-  const Vec3 goal(line.x() - origin.x(), target.surface_y + t.tip_radius - depth - origin.y(),
-                  line.z() - origin.z());
-  const Vec3 half = ctx_.device_link->info().workspace_half_extent;
-  if ((goal.array().abs() > half.array()).any())
-    return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
-                        "the press point lies outside the device's workspace (+-" +
-                            std::to_string(std::lround(half.x() * 1e3)) +
-                            " mm about its centre); move the object or press nearer the centre");
-  std::vector<std::pair<double, Vec3>> path;  // (arrival time from now [s], device position)
-  path.emplace_back(0.0, start.position);
-  const double dx = goal.x() - start.position.x(), dz = goal.z() - start.position.z();
-  if (dx * dx + dz * dz > 1e-6) {  // more than 1 mm off the line: move over it first
-    const double hover =
-        std::max(start.position.y(), highest + t.tip_radius + kToolClearance - origin.y());
-    if (hover > start.position.y() + 1e-4)
-      path.emplace_back(path.back().first + 0.25,
-                        Vec3(start.position.x(), hover, start.position.z()));
-    path.emplace_back(path.back().first + 0.5, Vec3(goal.x(), hover, goal.z()));
+  PressRequest pr;
+  pr.line = line;
+  pr.surface_y = target.surface_y;
+  pr.highest_y = highest;
+  pr.depth = depth;
+  pr.seconds = seconds;
+  pr.grip = emu->Snapshot().pose.position;
+  pr.origin = origin;
+  pr.half_extent = ctx_.device_link->info().workspace_half_extent;
+  pr.tip_radius = t.tip_radius;
+  auto plan = PlanPress(pr);
+  if (!plan.ok()) return ToGrpc(plan.error());
+  auto follow = [emu](const std::vector<PressPlan::Waypoint>& points) {
+    const drivers::GripSnapshot grip = emu->Snapshot();
+    std::vector<std::pair<double, Vec3>> path{{0.0, grip.pose.position}};
+    for (const auto& w : points) path.emplace_back(path.back().first + w.duration, w.grip);
+    const double t0 = grip.time;
+    emu->ScriptHand([path, t0](double now) {
+      const double s = now - t0;
+      drivers::Pose p;
+      p.position = path.back().second;
+      for (size_t i = 1; i < path.size(); ++i) {
+        if (s >= path[i].first) continue;
+        const double span = path[i].first - path[i - 1].first;
+        const double u = span > 0.0 ? std::clamp((s - path[i - 1].first) / span, 0.0, 1.0) : 1.0;
+        p.position = path[i - 1].second + u * (path[i].second - path[i - 1].second);
+        break;
+      }
+      return p;
+    });
+    return path.back().first;
+  };
+  const double before_s = follow(plan->before);
+  double after_s = 0.0;
+  if (plan->replace_origin) {
+    // A clutch: once the grip is at the centre column above every object, the workspace moves
+    // so the tool stands over the press line at that height; then the press goes down.
+    std::this_thread::sleep_for(std::chrono::duration<double>(before_s + 0.2));
+    Command oc;
+    oc.type = Command::Type::kSetToolOrigin;
+    oc.vec = {plan->new_origin.x(), plan->new_origin.y(), plan->new_origin.z()};
+    if (grpc::Status s = SubmitAndWait(*ctx_.engine, oc); !s.ok()) return s;
+    after_s = follow(plan->after);
   }
-  path.emplace_back(path.back().first + seconds, goal);
-  const double t0 = grip.time;
-  emu->ScriptHand([path, t0](double now) {
-    const double s = now - t0;
-    drivers::Pose p;
-    p.position = path.back().second;
-    for (size_t i = 1; i < path.size(); ++i) {
-      if (s >= path[i].first) continue;
-      const double span = path[i].first - path[i - 1].first;
-      const double u = span > 0.0 ? std::clamp((s - path[i - 1].first) / span, 0.0, 1.0) : 1.0;
-      p.position = path[i - 1].second + u * (path[i].second - path[i - 1].second);
-      break;
-    }
-    return p;
-  });
+  out->set_seconds(plan->replace_origin ? after_s : before_s);
+  const Vec3 goal = plan->goal;
   SetVec(goal, out->mutable_target()->mutable_position());
   out->mutable_target()->mutable_orientation()->set_w(1.0);
   out->set_surface_y(target.surface_y);

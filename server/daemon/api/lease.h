@@ -7,6 +7,7 @@
 #include <random>
 #include <string>
 
+#include "common/format.h"
 #include "common/status.h"
 
 namespace rheo::daemon {
@@ -94,9 +95,7 @@ class LeaseManager {
     return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
   }
   static std::string Seconds(Clock::duration d) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%.1f", std::chrono::duration<double>(d).count());
-    return b;
+    return Fixed(std::chrono::duration<double>(d).count(), 1);
   }
   std::string NewId() {
     std::uniform_int_distribution<uint64_t> u;

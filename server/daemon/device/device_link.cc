@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <thread>
 
+#include "common/format.h"
 #include "daemon/device/tool_placement.h"
 #include "drivers/device_factory.h"
 
@@ -328,15 +329,10 @@ std::string DeviceLink::Shutdown() {
     line += "last command received sets string tensions [";
     bool all_min = true;
     for (int i = 0; i < snap.tensions.size(); ++i) {
-      char b[32];
-      std::snprintf(b, sizeof b, "%s%.3f", i ? " " : "", snap.tensions[i]);
-      line += b;
+      line += (i ? " " : "") + Fixed(snap.tensions[i], 3);
       if (snap.tensions[i] > min_tension_ + 0.01) all_min = false;
     }
-    char b[96];
-    std::snprintf(b, sizeof b, "] N; minimum %.3f N; all at minimum: %s", min_tension_,
-                  all_min ? "yes" : "no");
-    line += b;
+    line += Format("] N; minimum %.3f N; all at minimum: %s", min_tension_, all_min ? "yes" : "no");
   }
   dog_thread_.reset();
   dog_.reset();
