@@ -93,6 +93,15 @@ std::string DefaultDeviceConfig(const char* argv0) {
   return installed.string();
 }
 
+// True for addresses only this machine can reach: 127.0.0.0/8, ::1, localhost, unix sockets.
+bool IsLoopbackListen(const std::string& listen) {
+  if (listen.rfind("unix:", 0) == 0 || listen.rfind("unix-abstract:", 0) == 0) return true;
+  std::string host = listen.substr(0, listen.rfind(':'));
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
+  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+}
+
 std::string DefaultDataDir() {
   if (const char* x = std::getenv("XDG_DATA_HOME"); x && *x) return std::string(x) + "/rheo";
   if (const char* h = std::getenv("HOME"); h && *h) return std::string(h) + "/.local/share/rheo";
@@ -266,6 +275,9 @@ int main(int argc, char** argv) {
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort(flags.listen, grpc::InsecureServerCredentials(), &port);
+  // Without SO_REUSEPORT a second daemon cannot bind the same port and split the clients, and
+  // gRPC opens no extra listener (with it, port 0 gets one more socket on another free port).
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.SetMaxReceiveMessageSize(64 << 20);
   builder.RegisterService(&daemon_service);
   builder.RegisterService(&frame_service);
@@ -274,7 +286,10 @@ int main(int argc, char** argv) {
   builder.RegisterService(&device_service);
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || port == 0) {
-    spdlog::error("cannot listen on {}: address in use or invalid", flags.listen);
+    spdlog::error(
+        "cannot listen on {}: the address is in use (another rheod or another program holds "
+        "the port) or invalid; choose another --listen host:port",
+        flags.listen);
     hub.Stop();
     engine.Stop();
     return 1;
@@ -283,6 +298,12 @@ int main(int argc, char** argv) {
   ctx.listen_address = host + ":" + std::to_string(port);
   spdlog::info("rheod {} listening on {} (data dir {}, device {})", RHEO_VERSION,
                ctx.listen_address, flags.data_dir, flags.device);
+  if (!IsLoopbackListen(flags.listen))
+    spdlog::warn(
+        "--listen {} is not a loopback address: the whole rheo.v1 API (the device, the scene, "
+        "every stored object) is open to anyone who can reach this port, with no "
+        "authentication, in plaintext; listen on 127.0.0.1 unless this network is trusted",
+        flags.listen);
 
   boost::asio::io_context io;
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
