@@ -13,7 +13,11 @@
 #include <atomic>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/signal_set.hpp>
+#include <condition_variable>
+#include <cstdlib>
 #include <filesystem>
+#include <mutex>
+#include <thread>
 
 #include "daemon/api/services.h"
 #include "daemon/loop/engine.h"
@@ -305,15 +309,42 @@ int main(int argc, char** argv) {
         "authentication, in plaintext; listen on 127.0.0.1 unless this network is trusted",
         flags.listen);
 
+  // Shutdown, in the safe order and bounded: the device to minimum tension first, then the mesh
+  // jobs are cancelled, the server and the loop stop. A job or a handler that does not stop in
+  // time is not waited for: past kHardStop the process leaves anyway (the device is already at
+  // minimum tension, and every stored object is one transaction, so nothing is half-written).
+  constexpr auto kServerGrace = std::chrono::milliseconds(500);
+  constexpr auto kJobsGrace = std::chrono::milliseconds(1000);
+  constexpr auto kHardStop = std::chrono::milliseconds(1900);
+  std::chrono::steady_clock::time_point signalled{};
+  std::mutex stop_mutex;
+  std::condition_variable stop_cv;
+  bool stopped = false;
+  std::thread hard_stop;
   boost::asio::io_context io;
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code&, int signo) {
+    signalled = std::chrono::steady_clock::now();
     spdlog::info("signal {} received, shutting down", signo);
     shutting_down.store(true);
+    if (device) {
+      device->EmergencyStop();  // every motor to minimum tension before anything else
+      spdlog::info("device {}: every motor to minimum tension", flags.device);
+    }
+    hard_stop = std::thread([&, t0 = signalled] {
+      std::unique_lock<std::mutex> l(stop_mutex);
+      if (stop_cv.wait_until(l, t0 + kHardStop, [&] { return stopped; })) return;
+      spdlog::error(
+          "shutdown did not finish within {} ms (a request or a job does not stop); the device "
+          "is at minimum tension, exiting now",
+          kHardStop.count());
+      spdlog::default_logger()->flush();
+      std::_Exit(0);
+    });
+    jobs.CancelAll();  // running mesh jobs are asked to stop
     server->GetHealthCheckService()->SetServingStatus(false);
-    hub.Stop();       // open frame streams end with UNAVAILABLE
-    jobs.Shutdown();  // running mesh jobs are cancelled; nothing half-stored (one transaction each)
-    server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(1000));
+    hub.Stop();  // open frame streams end with UNAVAILABLE
+    server->Shutdown(std::chrono::system_clock::now() + kServerGrace);
   });
   io.run();
   server->Wait();
@@ -326,5 +357,20 @@ int main(int argc, char** argv) {
   const auto& s = engine.loop().stats();
   spdlog::info("stopped after {} ticks ({} late, period p99 {:.1f} us)", s.ticks.load(),
                s.late_ticks.load(), s.period.Quantile(0.99) / 1e3);
+  const int running = jobs.in_flight();
+  if (!jobs.Shutdown(signalled + kJobsGrace)) {
+    spdlog::warn(
+        "{} mesh job(s) still running after the cancel; exiting without waiting for them "
+        "(each stored object is one transaction: nothing half-written is kept)",
+        running);
+    spdlog::default_logger()->flush();
+    std::_Exit(0);  // a worker is still running: destroying the pool would wait for it
+  }
+  {
+    std::lock_guard<std::mutex> l(stop_mutex);
+    stopped = true;
+  }
+  stop_cv.notify_all();
+  if (hard_stop.joinable()) hard_stop.join();
   return 0;
 }

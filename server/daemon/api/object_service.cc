@@ -82,6 +82,11 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
       (*job)->Cancel();
       return grpc::Status(grpc::StatusCode::CANCELLED, "client cancelled " + job_id);
     }
+    if (ctx_.shutting_down->load()) {
+      (*job)->Cancel();
+      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                          "rheod is shutting down; " + job_id + " was cancelled");
+    }
     if (!(*job)->Pop(ev, std::chrono::milliseconds(50), done)) continue;
     if (ev.error) {
       Error e = *ev.error;
