@@ -227,6 +227,92 @@ TEST(RheodStartup, SecondDaemonOnTheSameDataDirIsRefused) {
   EXPECT_NE(r.err.find("in use by another rheod"), std::string::npos) << r.err;
 }
 
+// The size of the next frame on the wire [bytes].
+size_t FrameBytes(RheodProcess& d) {
+  auto frames = v1::FrameService::NewStub(d.channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, 10s);
+  v1::WatchFramesRequest w;
+  w.set_rate_hz(30);
+  auto reader = frames->WatchFrames(&ctx, w);
+  v1::Frame f;
+  size_t bytes = 0;
+  if (reader->Read(&f)) bytes = f.ByteSizeLong();
+  ctx.TryCancel();
+  reader->Finish();
+  return bytes;
+}
+
+TEST(RheodLimits, HugeStringsAreRefusedWithAShortMessageAndFramesStaySmall) {
+  RheodProcess d({"--device", "network"});
+  ASSERT_TRUE(d.started()) << d.log();
+  const size_t before = FrameBytes(d);
+  ASSERT_GT(before, 0u);
+  auto dev = v1::DeviceService::NewStub(d.channel());
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::AcquireLeaseRequest req;
+    req.set_client_name(std::string(5u << 20, 'n'));
+    v1::Lease lease;
+    grpc::Status s = dev->AcquireLease(&ctx, req, &lease);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << s.error_message().size();
+    EXPECT_LT(s.error_message().size(), 200u);
+    EXPECT_NE(s.error_message().find("client_name"), std::string::npos) << s.error_message();
+    EXPECT_NE(s.error_message().find("200"), std::string::npos) << s.error_message();
+  }
+  auto objects = v1::ObjectService::NewStub(d.channel());
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::GetObjectRequest req;
+    req.set_id(std::string(10u << 20, '\x01'));
+    v1::Object o;
+    grpc::Status s = objects->GetObject(&ctx, req, &o);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << s.error_message().size();
+    EXPECT_LT(s.error_message().size(), 200u);
+    EXPECT_NE(s.error_message().find("id is 10485760 bytes"), std::string::npos)
+        << s.error_message();
+    EXPECT_NE(s.error_message().find("\\x01"), std::string::npos) << s.error_message();
+  }
+  {
+    // Nested: a parameter name inside AddToScene.
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    auto scene = v1::SceneService::NewStub(d.channel());
+    v1::AddToSceneRequest req;
+    req.set_object_id("x");
+    req.add_overrides()->set_name(std::string(1u << 20, 'k'));
+    v1::SceneObject so;
+    grpc::Status s = scene->AddToScene(&ctx, req, &so);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_LT(s.error_message().size(), 200u);
+    EXPECT_NE(s.error_message().find("overrides[0].name"), std::string::npos) << s.error_message();
+  }
+  {
+    // An unknown id is quoted short: NOT_FOUND, not a transport error.
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::GetObjectRequest req;
+    req.set_id(std::string(100, 'z'));
+    v1::Object o;
+    grpc::Status s = objects->GetObject(&ctx, req, &o);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::NOT_FOUND);
+    EXPECT_LT(s.error_message().size(), 100u) << s.error_message();
+  }
+  // A fitting name is granted, and the frames do not grow by more than it.
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::AcquireLeaseRequest req;
+    req.set_client_name("alice");
+    v1::Lease lease;
+    EXPECT_TRUE(dev->AcquireLease(&ctx, req, &lease).ok());
+  }
+  const size_t after = FrameBytes(d);
+  EXPECT_LT(after, before + 64) << before << " -> " << after << " bytes";
+}
+
 TEST(RheodStartup, SecondDaemonOnTheSamePortIsRefused) {
   RheodProcess first;
   ASSERT_TRUE(first.started()) << first.log();

@@ -3,6 +3,7 @@
 
 #include "daemon/api/convert.h"
 #include "daemon/api/grpc_status.h"
+#include "daemon/api/limits.h"
 #include "daemon/api/services.h"
 #include "sim/sim.h"
 
@@ -36,6 +37,7 @@ grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetScene
 
 grpc::Status SceneServiceImpl::AddToScene(grpc::ServerContext*, const v1::AddToSceneRequest* req,
                                           v1::SceneObject* out) {
+  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   return AddObjectToScene(ctx_, *req, /*fresh=*/nullptr, out);
 }
 
@@ -158,6 +160,7 @@ grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
 grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
                                              const v1::SetParametersRequest* req,
                                              v1::SetParametersResponse* out) {
+  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
   std::vector<std::shared_ptr<const SceneEntry>> targets;
   if (req->instance_id() == 0) {
