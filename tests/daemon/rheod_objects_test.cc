@@ -2,6 +2,7 @@
 // export, errors, and a simulated object streaming frames.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -173,6 +174,42 @@ TEST(RheodObjects, BadSketchesGetTheRightCodeAndNothingStoredIsLost) {
   bool found = false;
   for (const auto& obj : list.objects()) found = found || obj.id() == good.object.id();
   EXPECT_TRUE(found) << "the good object must still be stored";
+}
+
+TEST(RheodObjects, TinyAndHugeNumbersAreSpelledInTheErrors) {
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  auto stub = v1::ObjectService::NewStub(d.channel());
+  // A resolution of 1e-9 m reads as such, not as 0.000000.
+  v1::CreateObjectRequest fine = BeanRequest();
+  fine.mutable_mesh_options()->set_resolution(1e-9);
+  Created f = Create(*stub, fine);
+  EXPECT_EQ(f.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(f.status.error_message().find("got 1e-09"), std::string::npos)
+      << f.status.error_message();
+  EXPECT_NE(f.status.error_message().find("between 0.0005 and 0.5 m"), std::string::npos)
+      << f.status.error_message();
+  // Contours 1e100 and 1e300 px across: a clear refusal, not a wrapped-around count.
+  auto circle = [](double diameter) {
+    v1::CreateObjectRequest req;
+    for (int i = 0; i < 64; ++i) {
+      auto* p = req.mutable_sketch()->mutable_contour()->add_points();
+      p->set_x(0.5 * diameter * (1.0 + std::cos(2 * M_PI * i / 64)));
+      p->set_y(0.5 * diameter * (1.0 + std::sin(2 * M_PI * i / 64)));
+    }
+    return req;
+  };
+  Created big = Create(*stub, circle(1e100));
+  EXPECT_EQ(big.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED)
+      << big.status.error_code() << " " << big.status.error_message();
+  EXPECT_NE(big.status.error_message().find("e+"), std::string::npos) << big.status.error_message();
+  EXPECT_EQ(big.status.error_message().find("-92233720"), std::string::npos)
+      << big.status.error_message();
+  Created huge = Create(*stub, circle(1e300));
+  EXPECT_EQ(huge.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT)
+      << huge.status.error_code() << " " << huge.status.error_message();
+  EXPECT_NE(huge.status.error_message().find("too large"), std::string::npos)
+      << huge.status.error_message();
 }
 
 TEST(RheodObjects, MeshSizeLimitIsResourceExhaustedNamingTheLimit) {
