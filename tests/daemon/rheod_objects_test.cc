@@ -223,6 +223,66 @@ TEST(RheodObjects, MeshSizeLimitIsResourceExhaustedNamingTheLimit) {
       << c.status.error_message();
 }
 
+TEST(RheodScene, GetSceneReportsSleepingAsTheFramesDo) {
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  auto objects = v1::ObjectService::NewStub(d.channel());
+  auto scene = v1::SceneService::NewStub(d.channel());
+  auto frames = v1::FrameService::NewStub(d.channel());
+  v1::CreateObjectRequest req = BeanRequest();
+  req.mutable_mesh_options()->set_resolution(0.012);
+  Created c = Create(*objects, req);
+  ASSERT_TRUE(c.status.ok()) << c.status.error_message();
+  grpc::ClientContext actx;
+  SetDeadline(actx, 30s);
+  v1::AddToSceneRequest add;
+  add.set_object_id(c.object.id());
+  add.set_preset("hard-jelly");
+  add.set_integrator(v1::INTEGRATOR_IMPLICIT);
+  auto* grip = add.add_overrides();
+  grip->set_name("friction");
+  grip->set_value(5.0);
+  auto* rest = add.add_overrides();  // at rest soon after landing
+  rest->set_name("sleep_speed");
+  rest->set_value(0.02);
+  v1::SceneObject so;
+  grpc::Status s = scene->AddToScene(&actx, add, &so);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  {
+    grpc::ClientContext gctx;
+    SetDeadline(gctx);
+    v1::Scene sc;
+    ASSERT_TRUE(scene->GetScene(&gctx, {}, &sc).ok());
+    ASSERT_EQ(sc.objects_size(), 1);
+    EXPECT_FALSE(sc.objects(0).sleeping()) << "just placed 2 cm above the floor: falling";
+  }
+  // Wait until the frames say it sleeps, then pause so it stays so.
+  grpc::ClientContext fctx;
+  SetDeadline(fctx, 30s);
+  v1::WatchFramesRequest w;
+  w.set_rate_hz(20);
+  auto reader = frames->WatchFrames(&fctx, w);
+  v1::Frame f;
+  bool asleep = false;
+  while (!asleep && reader->Read(&f)) asleep = f.objects_size() == 1 && f.objects(0).sleeping();
+  fctx.TryCancel();
+  reader->Finish();
+  ASSERT_TRUE(asleep) << "the bean never settled";
+  grpc::ClientContext pctx;
+  SetDeadline(pctx);
+  v1::ControlRequest pause;
+  pause.set_command(v1::RUN_COMMAND_PAUSE);
+  v1::ControlResponse pr;
+  ASSERT_TRUE(scene->Control(&pctx, pause, &pr).ok());
+  std::this_thread::sleep_for(300ms);  // the hub's copy is at most 100 ms old
+  grpc::ClientContext gctx;
+  SetDeadline(gctx);
+  v1::Scene sc;
+  ASSERT_TRUE(scene->GetScene(&gctx, {}, &sc).ok());
+  ASSERT_EQ(sc.objects_size(), 1);
+  EXPECT_TRUE(sc.objects(0).sleeping());
+}
+
 TEST(RheodScene, ObjectFallsAndStreamsTopologyOnceThenPositions) {
   RheodProcess d;
   ASSERT_TRUE(d.started()) << d.log();

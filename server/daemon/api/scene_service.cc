@@ -27,8 +27,17 @@ grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetScene
   out->set_gravity(defaults.gravity);
   out->set_floor_height(defaults.floor_height);
   auto entries = ctx_.scene->All();
+  // Sleeping as the latest frame has it (the hub keeps one at least every 100 ms).
+  std::shared_ptr<const FrameSnapshot> snap;
+  if (!entries.empty())
+    snap = ctx_.hub->WaitNewer(0, std::chrono::steady_clock::now() + std::chrono::seconds(1),
+                               [] { return false; });
   for (const auto& e : entries) {
-    FillSceneObject(*e, false, out->add_objects());
+    bool sleeping = false;
+    for (uint32_t i = 0; snap && i < snap->frame.object_count; ++i)
+      if (snap->frame.objects[i].instance_id == e->instance_id)
+        sleeping = snap->frame.objects[i].sleeping;
+    FillSceneObject(*e, sleeping, out->add_objects());
     out->set_gravity(e->params.gravity);
     out->set_floor_height(e->params.floor_height);
   }
