@@ -220,6 +220,32 @@ TEST(RheodDevice, PressingTheEmulatedHandIntoAnObjectGivesEqualAndOppositeForces
   EXPECT_TRUE(d.WaitForLog("all at minimum: yes", 2s)) << d.log();
 }
 
+TEST(RheodDevice, SimulatedHandRefusesANonFiniteOrZeroQuaternion) {
+  RheodProcess d({"--device", "sim-spidar-g"});
+  ASSERT_TRUE(d.started()) << d.log();
+  auto dev = v1::DeviceService::NewStub(d.channel());
+  for (auto [w, x] : {std::pair{std::nan(""), 0.0}, {1.0, INFINITY}, {0.0, 0.0}}) {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::SimulatedHandRequest req;
+    auto* o = req.mutable_hold()->mutable_orientation();
+    o->set_w(w);
+    o->set_x(x);
+    v1::SimulatedHandResponse r;
+    grpc::Status s = dev->SimulatedHand(&ctx, req, &r);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << w << " " << x;
+    EXPECT_NE(s.error_message().find("quaternion"), std::string::npos) << s.error_message();
+  }
+  // The upright hold still works, and the device is still calibrated and connected.
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::SimulatedHandRequest req;
+  req.mutable_hold()->mutable_orientation()->set_w(1.0);
+  v1::SimulatedHandResponse r;
+  EXPECT_TRUE(dev->SimulatedHand(&ctx, req, &r).ok());
+  EXPECT_TRUE(Status(*dev).connected());
+}
+
 // 8,000 two-point strokes clustered in a 40 px square: inside every size limit, yet the sketch
 // stage takes minutes on it and does not look at the job's cancel.
 std::string StrokeBomb(int strokes) {

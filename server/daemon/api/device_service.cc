@@ -215,7 +215,12 @@ grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext*,
       pose.position = Vec3(p.x(), p.y(), p.z());
       if (req->hold().has_orientation()) {
         const auto& o = req->hold().orientation();
-        pose.orientation = Eigen::Quaterniond(o.w(), o.x(), o.y(), o.z()).normalized();
+        const Eigen::Quaterniond q(o.w(), o.x(), o.y(), o.z());
+        if (!q.coeffs().allFinite() || !(q.norm() > 1e-6))
+          return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                              "hold orientation must be a finite, non-zero quaternion (w, x, y, "
+                              "z); leave it unset for upright");
+        pose.orientation = q.normalized();
       }
       const Vec3 half = ctx_.device_link->info().workspace_half_extent;
       if (!pose.position.allFinite() || (pose.position.array().abs() > half.array()).any())
