@@ -13,7 +13,11 @@
 #include <atomic>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/signal_set.hpp>
+#include <condition_variable>
+#include <cstdlib>
 #include <filesystem>
+#include <mutex>
+#include <thread>
 
 #include "daemon/api/services.h"
 #include "daemon/loop/engine.h"
@@ -91,6 +95,15 @@ std::string DefaultDeviceConfig(const char* argv0) {
   if (fs::exists(source, ec)) return source.string();
 #endif
   return installed.string();
+}
+
+// True for addresses only this machine can reach: 127.0.0.0/8, ::1, localhost, unix sockets.
+bool IsLoopbackListen(const std::string& listen) {
+  if (listen.rfind("unix:", 0) == 0 || listen.rfind("unix-abstract:", 0) == 0) return true;
+  std::string host = listen.substr(0, listen.rfind(':'));
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
+  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
 }
 
 std::string DefaultDataDir() {
@@ -266,6 +279,9 @@ int main(int argc, char** argv) {
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort(flags.listen, grpc::InsecureServerCredentials(), &port);
+  // Without SO_REUSEPORT a second daemon cannot bind the same port and split the clients, and
+  // gRPC opens no extra listener (with it, port 0 gets one more socket on another free port).
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.SetMaxReceiveMessageSize(64 << 20);
   builder.RegisterService(&daemon_service);
   builder.RegisterService(&frame_service);
@@ -274,7 +290,10 @@ int main(int argc, char** argv) {
   builder.RegisterService(&device_service);
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || port == 0) {
-    spdlog::error("cannot listen on {}: address in use or invalid", flags.listen);
+    spdlog::error(
+        "cannot listen on {}: the address is in use (another rheod or another program holds "
+        "the port) or invalid; choose another --listen host:port",
+        flags.listen);
     hub.Stop();
     engine.Stop();
     return 1;
@@ -283,16 +302,49 @@ int main(int argc, char** argv) {
   ctx.listen_address = host + ":" + std::to_string(port);
   spdlog::info("rheod {} listening on {} (data dir {}, device {})", RHEO_VERSION,
                ctx.listen_address, flags.data_dir, flags.device);
+  if (!IsLoopbackListen(flags.listen))
+    spdlog::warn(
+        "--listen {} is not a loopback address: the whole rheo.v1 API (the device, the scene, "
+        "every stored object) is open to anyone who can reach this port, with no "
+        "authentication, in plaintext; listen on 127.0.0.1 unless this network is trusted",
+        flags.listen);
 
+  // Shutdown, in the safe order and bounded: the device to minimum tension first, then the mesh
+  // jobs are cancelled, the server and the loop stop. A job or a handler that does not stop in
+  // time is not waited for: past kHardStop the process leaves anyway (the device is already at
+  // minimum tension, and every stored object is one transaction, so nothing is half-written).
+  constexpr auto kServerGrace = std::chrono::milliseconds(500);
+  constexpr auto kJobsGrace = std::chrono::milliseconds(1000);
+  constexpr auto kHardStop = std::chrono::milliseconds(1900);
+  std::chrono::steady_clock::time_point signalled{};
+  std::mutex stop_mutex;
+  std::condition_variable stop_cv;
+  bool stopped = false;
+  std::thread hard_stop;
   boost::asio::io_context io;
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code&, int signo) {
+    signalled = std::chrono::steady_clock::now();
     spdlog::info("signal {} received, shutting down", signo);
     shutting_down.store(true);
+    if (device) {
+      device->EmergencyStop();  // every motor to minimum tension before anything else
+      spdlog::info("device {}: every motor to minimum tension", flags.device);
+    }
+    hard_stop = std::thread([&, t0 = signalled] {
+      std::unique_lock<std::mutex> l(stop_mutex);
+      if (stop_cv.wait_until(l, t0 + kHardStop, [&] { return stopped; })) return;
+      spdlog::error(
+          "shutdown did not finish within {} ms (a request or a job does not stop); the device "
+          "is at minimum tension, exiting now",
+          kHardStop.count());
+      spdlog::default_logger()->flush();
+      std::_Exit(0);
+    });
+    jobs.CancelAll();  // running mesh jobs are asked to stop
     server->GetHealthCheckService()->SetServingStatus(false);
-    hub.Stop();       // open frame streams end with UNAVAILABLE
-    jobs.Shutdown();  // running mesh jobs are cancelled; nothing half-stored (one transaction each)
-    server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(1000));
+    hub.Stop();  // open frame streams end with UNAVAILABLE
+    server->Shutdown(std::chrono::system_clock::now() + kServerGrace);
   });
   io.run();
   server->Wait();
@@ -305,5 +357,20 @@ int main(int argc, char** argv) {
   const auto& s = engine.loop().stats();
   spdlog::info("stopped after {} ticks ({} late, period p99 {:.1f} us)", s.ticks.load(),
                s.late_ticks.load(), s.period.Quantile(0.99) / 1e3);
+  const int running = jobs.in_flight();
+  if (!jobs.Shutdown(signalled + kJobsGrace)) {
+    spdlog::warn(
+        "{} mesh job(s) still running after the cancel; exiting without waiting for them "
+        "(each stored object is one transaction: nothing half-written is kept)",
+        running);
+    spdlog::default_logger()->flush();
+    std::_Exit(0);  // a worker is still running: destroying the pool would wait for it
+  }
+  {
+    std::lock_guard<std::mutex> l(stop_mutex);
+    stopped = true;
+  }
+  stop_cv.notify_all();
+  if (hard_stop.joinable()) hard_stop.join();
   return 0;
 }

@@ -1,5 +1,7 @@
 // BuildSolid: the pipeline, with limits, progress, cancellation and stage timings.
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 
 #include "mesh/internal.h"
 
@@ -49,6 +51,26 @@ Result<MeshResult> BuildSolid(const Polygon2& contour_px, const MeshOptions& opt
   if (!resampled.ok()) return resampled.error();
   r.contour = std::move(*resampled);
 
+  // A coarse estimate first, so a huge request fails before the triangulation and the 2D mesher
+  // run.
+  double area = 0;
+  for (size_t i = 0, n = r.contour.size(); i < n; ++i)
+    area += r.contour[i].x() * r.contour[(i + 1) % n].y() -
+            r.contour[(i + 1) % n].x() * r.contour[i].y();
+  const double tri_estimate =
+      0.5 * std::abs(area) / (0.35 * options.resolution * options.resolution);
+  if (!std::isfinite(tri_estimate))
+    return InvalidArgument(
+        "the contour is too large to mesh: its area does not fit a double (coordinates of "
+        "about 1e150 m or more after pixel_size); scale the sketch down");
+  if (tri_estimate > 2.0 * static_cast<double>(options.max_vertices)) {
+    char about[32];
+    std::snprintf(about, sizeof about, tri_estimate < 2e15 ? "%.0f" : "%.3g", tri_estimate / 2);
+    return ResourceExhausted("the 2D mesh alone would need about " + std::string(about) +
+                             " vertices, over the limit max_vertices = " +
+                             std::to_string(options.max_vertices) + "; raise the resolution");
+  }
+
   if (!st.Next("contour", "cdt", 0.1)) return CancelledIn("cdt");
   auto cdt = internal::TriangulateWithNeighbors(r.contour);
   if (!cdt.ok()) return cdt.error();
@@ -60,17 +82,6 @@ Result<MeshResult> BuildSolid(const Polygon2& contour_px, const MeshOptions& opt
   r.teddy = std::move(*teddy);
 
   if (!st.Next("teddy", "mesh2d", 0.3)) return CancelledIn("mesh2d");
-  // A coarse estimate first, so a huge request fails before the 2D mesher runs.
-  double area = 0;
-  for (size_t i = 0, n = r.contour.size(); i < n; ++i)
-    area += r.contour[i].x() * r.contour[(i + 1) % n].y() -
-            r.contour[(i + 1) % n].x() * r.contour[i].y();
-  const double tri_estimate = 0.5 * area / (0.35 * options.resolution * options.resolution);
-  if (tri_estimate > 2.0 * static_cast<double>(options.max_vertices))
-    return ResourceExhausted("the 2D mesh alone would need about " +
-                             std::to_string(static_cast<int64_t>(tri_estimate / 2)) +
-                             " vertices, over the limit max_vertices = " +
-                             std::to_string(options.max_vertices) + "; raise the resolution");
   auto mesh2 = options.division == Division::kPaper
                    ? internal::PaperMesh(r.teddy, options.resolution)
                    : internal::QualityMesh(r.contour, options.resolution);

@@ -68,6 +68,29 @@ ToolTelemetry WaitFor(const Engine& e, const std::function<bool(const ToolTeleme
   return t;
 }
 
+TEST(DeviceLink, ALineWhoseExchangesKeepFailingIsReportedDisconnected) {
+  DeviceLinkOptions o;
+  o.kind = DeviceKind::kSimSpidarG;
+  o.config_path = std::string(RHEO_DEVICES) + "/spidar_g_x5.json";
+  o.realtime = false;
+  o.reply_timeout_us = 20000;
+  o.watchdog_timeout_ns = 100'000'000;  // the failing line slows the loop: no watchdog stop
+  auto link = DeviceLink::Open(o);
+  ASSERT_TRUE(link.ok()) << link.error().message;
+  Engine engine(TestOptions());
+  engine.AttachDevice(link->get());
+  engine.Start();
+  ToolTelemetry t = WaitFor(engine, [](const ToolTelemetry& t) { return t.exchanges > 200; });
+  EXPECT_TRUE(t.connected);
+  // The emulator stops answering: every exchange now fails.
+  (*link)->emulator()->Stop();
+  const uint64_t errors = t.device_errors;
+  t = WaitFor(engine, [](const ToolTelemetry& t) { return !t.connected; });
+  EXPECT_FALSE(t.connected) << (t.device_errors - errors) << " failed exchanges";
+  EXPECT_GT(t.device_errors, errors);
+  engine.Stop();
+}
+
 TEST(DeviceLink, NetworkToolPressesATetrahedronWithEqualAndOppositeForces) {
   DeviceLinkOptions o;
   o.kind = DeviceKind::kNetwork;

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <functional>
 #include <future>
 
@@ -100,6 +101,35 @@ TEST(JobPool, AdmissionIsBoundedAndNamesTheLimit) {
   // Slots come back once jobs end.
   for (int i = 0; i < 100 && pool.in_flight() > 0; ++i) std::this_thread::sleep_for(1ms);
   EXPECT_TRUE(pool.Submit(In(10s), Push42).ok());
+}
+
+TEST(JobPool, ShutdownWithADeadlineJoinsJobsThatStop) {
+  auto pool = MakePool(2, 4);
+  auto job = pool.Submit(In(10s), [](Job<Ev>& j) {
+    while (!j.ShouldStop()) std::this_thread::sleep_for(1ms);
+  });
+  ASSERT_TRUE(job.ok());
+  while (pool.in_flight() == 0) std::this_thread::sleep_for(1ms);
+  EXPECT_TRUE(pool.Shutdown(std::chrono::steady_clock::now() + 2s));
+  EXPECT_EQ(pool.in_flight(), 0);
+}
+
+TEST(JobPool, ShutdownWithADeadlineDoesNotWaitForWorkThatIgnoresTheCancel) {
+  auto pool = MakePool(1, 4);
+  std::atomic<bool> release{false};
+  std::atomic<bool> started{false};
+  auto stuck = pool.Submit(In(10s), [&](Job<Ev>&) {
+    started = true;
+    while (!release) std::this_thread::sleep_for(1ms);  // never looks at ShouldStop
+  });
+  ASSERT_TRUE(stuck.ok());
+  while (!started) std::this_thread::sleep_for(1ms);
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_FALSE(pool.Shutdown(t0 + 100ms));
+  const auto took = std::chrono::steady_clock::now() - t0;
+  EXPECT_LT(took, 1s) << std::chrono::duration<double>(took).count() << " s";
+  EXPECT_TRUE((*stuck)->cancelled());
+  release = true;  // lets the pool's destructor join
 }
 
 }  // namespace

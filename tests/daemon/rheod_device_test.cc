@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "rheo/v1/device.grpc.pb.h"
 #include "rheo/v1/frames.grpc.pb.h"
@@ -217,6 +218,84 @@ TEST(RheodDevice, PressingTheEmulatedHandIntoAnObjectGivesEqualAndOppositeForces
   // SIGTERM with the device: exits 0 and the emulator's last command is minimum tension.
   EXPECT_EQ(d.Terminate(10s), 0) << d.log();
   EXPECT_TRUE(d.WaitForLog("all at minimum: yes", 2s)) << d.log();
+}
+
+TEST(RheodDevice, SimulatedHandRefusesANonFiniteOrZeroQuaternion) {
+  RheodProcess d({"--device", "sim-spidar-g"});
+  ASSERT_TRUE(d.started()) << d.log();
+  auto dev = v1::DeviceService::NewStub(d.channel());
+  for (auto [w, x] : {std::pair{std::nan(""), 0.0}, {1.0, INFINITY}, {0.0, 0.0}}) {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::SimulatedHandRequest req;
+    auto* o = req.mutable_hold()->mutable_orientation();
+    o->set_w(w);
+    o->set_x(x);
+    v1::SimulatedHandResponse r;
+    grpc::Status s = dev->SimulatedHand(&ctx, req, &r);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << w << " " << x;
+    EXPECT_NE(s.error_message().find("quaternion"), std::string::npos) << s.error_message();
+  }
+  // The upright hold still works, and the device is still calibrated and connected.
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::SimulatedHandRequest req;
+  req.mutable_hold()->mutable_orientation()->set_w(1.0);
+  v1::SimulatedHandResponse r;
+  EXPECT_TRUE(dev->SimulatedHand(&ctx, req, &r).ok());
+  EXPECT_TRUE(Status(*dev).connected());
+}
+
+// 8,000 two-point strokes clustered in a 40 px square: inside every size limit, yet the sketch
+// stage takes minutes on it and does not look at the job's cancel.
+std::string StrokeBomb(int strokes) {
+  std::string json = "{\"width\": 512, \"height\": 512, \"strokes\": [";
+  uint32_t r = 12345;
+  auto next = [&] {
+    r = r * 1664525u + 1013904223u;
+    return 236.0 + 40.0 * (r >> 8) / double(1u << 24);
+  };
+  for (int i = 0; i < strokes; ++i) {
+    char b[128];
+    std::snprintf(b, sizeof b, "%s[[%.2f, %.2f], [%.2f, %.2f]]", i ? ", " : "", next(), next(),
+                  next(), next());
+    json += b;
+  }
+  return json + "]}";
+}
+
+TEST(RheodDevice, SigtermWithAStuckJobStopsTheDeviceFirstAndExitsWithinTwoSeconds) {
+  RheodProcess d({"--device", "sim-spidar-g"});
+  ASSERT_TRUE(d.started()) << d.log();
+  auto objects = v1::ObjectService::NewStub(d.channel());
+  v1::CreateObjectRequest req;
+  req.set_name("stroke bomb");
+  req.mutable_sketch()->set_strokes_json(StrokeBomb(8000));
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, 300s);
+  auto reader = objects->CreateObject(&ctx, req);
+  // The job is in the sketch stage once the "contour" stage opened.
+  v1::CreateObjectProgress p;
+  bool in_sketch = false;
+  while (!in_sketch && reader->Read(&p)) in_sketch = p.stage() == "contour";
+  ASSERT_TRUE(in_sketch) << reader->Finish().error_message();
+  std::this_thread::sleep_for(500ms);  // well inside the sketch stage
+  std::chrono::milliseconds took{};
+  const int code = d.Terminate(10s, &took);
+  EXPECT_EQ(code, 0) << d.log();
+  EXPECT_LE(took.count(), 2000) << "exit took " << took.count() << " ms; log:\n" << d.log();
+  EXPECT_TRUE(d.WaitForLog("all at minimum: yes", 2s)) << d.log();
+  const std::string log = d.log();
+  const size_t stop = log.find("every motor to minimum tension");
+  const size_t cancel = log.find("mesh job(s) still running");
+  EXPECT_NE(stop, std::string::npos) << log;
+  std::printf("SIGTERM to exit: %lld ms; the job %s\n", static_cast<long long>(took.count()),
+              cancel != std::string::npos ? "was still running (not waited for)" : "stopped");
+  if (cancel != std::string::npos) {
+    EXPECT_LT(stop, cancel) << log;
+  }
+  ctx.TryCancel();
+  reader->Finish();
 }
 
 TEST(RheodDevice, LeaseHasOneHolderAndTheEmergencyStopHoldsUntilTheHolderClearsIt) {

@@ -46,7 +46,9 @@ int WaitExit(int pid, std::chrono::milliseconds timeout) {
 }  // namespace
 
 RheodProcess::RheodProcess(std::vector<std::string> extra_args) {
-  std::vector<std::string> args = {RHEOD_PATH, "--listen", "127.0.0.1:0", "--log-level", "debug"};
+  std::vector<std::string> args = {RHEOD_PATH, "--log-level", "debug"};
+  if (std::find(extra_args.begin(), extra_args.end(), "--listen") == extra_args.end())
+    args.insert(args.end(), {"--listen", "127.0.0.1:0"});
   auto given = std::find(extra_args.begin(), extra_args.end(), "--data-dir");
   if (given != extra_args.end() && given + 1 != extra_args.end()) {
     data_dir_ = *(given + 1);  // the caller's: not removed afterwards

@@ -15,7 +15,8 @@
 namespace rheo::testing {
 
 /// A running rheod child process. Its stderr is captured; the address is read from the
-/// "listening on" log line, so no fixed ports and no sleeps.
+/// "listening on" log line, so no fixed ports and no sleeps. `--listen` among the extra
+/// arguments replaces the default 127.0.0.1:0.
 class RheodProcess {
  public:
   explicit RheodProcess(std::vector<std::string> extra_args = {});
@@ -24,6 +25,8 @@ class RheodProcess {
   bool started() const { return !address_.empty(); }
   const std::string& address() const { return address_; }
   const std::string& data_dir() const { return data_dir_; }
+  /// The child's process id (-1 once it exited and was reaped).
+  int pid() const { return pid_; }
   std::shared_ptr<grpc::Channel> channel() const;
 
   /// Sends SIGTERM and waits; returns the exit code (or 128 + signal), -1 on timeout.

@@ -2,6 +2,7 @@
 // export, errors, and a simulated object streaming frames.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -175,6 +176,42 @@ TEST(RheodObjects, BadSketchesGetTheRightCodeAndNothingStoredIsLost) {
   EXPECT_TRUE(found) << "the good object must still be stored";
 }
 
+TEST(RheodObjects, TinyAndHugeNumbersAreSpelledInTheErrors) {
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  auto stub = v1::ObjectService::NewStub(d.channel());
+  // A resolution of 1e-9 m reads as such, not as 0.000000.
+  v1::CreateObjectRequest fine = BeanRequest();
+  fine.mutable_mesh_options()->set_resolution(1e-9);
+  Created f = Create(*stub, fine);
+  EXPECT_EQ(f.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(f.status.error_message().find("got 1e-09"), std::string::npos)
+      << f.status.error_message();
+  EXPECT_NE(f.status.error_message().find("between 0.0005 and 0.5 m"), std::string::npos)
+      << f.status.error_message();
+  // Contours 1e100 and 1e300 px across: a clear refusal, not a wrapped-around count.
+  auto circle = [](double diameter) {
+    v1::CreateObjectRequest req;
+    for (int i = 0; i < 64; ++i) {
+      auto* p = req.mutable_sketch()->mutable_contour()->add_points();
+      p->set_x(0.5 * diameter * (1.0 + std::cos(2 * M_PI * i / 64)));
+      p->set_y(0.5 * diameter * (1.0 + std::sin(2 * M_PI * i / 64)));
+    }
+    return req;
+  };
+  Created big = Create(*stub, circle(1e100));
+  EXPECT_EQ(big.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED)
+      << big.status.error_code() << " " << big.status.error_message();
+  EXPECT_NE(big.status.error_message().find("e+"), std::string::npos) << big.status.error_message();
+  EXPECT_EQ(big.status.error_message().find("-92233720"), std::string::npos)
+      << big.status.error_message();
+  Created huge = Create(*stub, circle(1e300));
+  EXPECT_EQ(huge.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT)
+      << huge.status.error_code() << " " << huge.status.error_message();
+  EXPECT_NE(huge.status.error_message().find("too large"), std::string::npos)
+      << huge.status.error_message();
+}
+
 TEST(RheodObjects, MeshSizeLimitIsResourceExhaustedNamingTheLimit) {
   RheodProcess d({"--max-tets", "1000"});
   ASSERT_TRUE(d.started()) << d.log();
@@ -184,6 +221,66 @@ TEST(RheodObjects, MeshSizeLimitIsResourceExhaustedNamingTheLimit) {
   Created c = Create(*stub, req);
   EXPECT_EQ(c.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED)
       << c.status.error_message();
+}
+
+TEST(RheodScene, GetSceneReportsSleepingAsTheFramesDo) {
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  auto objects = v1::ObjectService::NewStub(d.channel());
+  auto scene = v1::SceneService::NewStub(d.channel());
+  auto frames = v1::FrameService::NewStub(d.channel());
+  v1::CreateObjectRequest req = BeanRequest();
+  req.mutable_mesh_options()->set_resolution(0.012);
+  Created c = Create(*objects, req);
+  ASSERT_TRUE(c.status.ok()) << c.status.error_message();
+  grpc::ClientContext actx;
+  SetDeadline(actx, 30s);
+  v1::AddToSceneRequest add;
+  add.set_object_id(c.object.id());
+  add.set_preset("hard-jelly");
+  add.set_integrator(v1::INTEGRATOR_IMPLICIT);
+  auto* grip = add.add_overrides();
+  grip->set_name("friction");
+  grip->set_value(5.0);
+  auto* rest = add.add_overrides();  // at rest soon after landing
+  rest->set_name("sleep_speed");
+  rest->set_value(0.02);
+  v1::SceneObject so;
+  grpc::Status s = scene->AddToScene(&actx, add, &so);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  {
+    grpc::ClientContext gctx;
+    SetDeadline(gctx);
+    v1::Scene sc;
+    ASSERT_TRUE(scene->GetScene(&gctx, {}, &sc).ok());
+    ASSERT_EQ(sc.objects_size(), 1);
+    EXPECT_FALSE(sc.objects(0).sleeping()) << "just placed 2 cm above the floor: falling";
+  }
+  // Wait until the frames say it sleeps, then pause so it stays so.
+  grpc::ClientContext fctx;
+  SetDeadline(fctx, 30s);
+  v1::WatchFramesRequest w;
+  w.set_rate_hz(20);
+  auto reader = frames->WatchFrames(&fctx, w);
+  v1::Frame f;
+  bool asleep = false;
+  while (!asleep && reader->Read(&f)) asleep = f.objects_size() == 1 && f.objects(0).sleeping();
+  fctx.TryCancel();
+  reader->Finish();
+  ASSERT_TRUE(asleep) << "the bean never settled";
+  grpc::ClientContext pctx;
+  SetDeadline(pctx);
+  v1::ControlRequest pause;
+  pause.set_command(v1::RUN_COMMAND_PAUSE);
+  v1::ControlResponse pr;
+  ASSERT_TRUE(scene->Control(&pctx, pause, &pr).ok());
+  std::this_thread::sleep_for(300ms);  // the hub's copy is at most 100 ms old
+  grpc::ClientContext gctx;
+  SetDeadline(gctx);
+  v1::Scene sc;
+  ASSERT_TRUE(scene->GetScene(&gctx, {}, &sc).ok());
+  ASSERT_EQ(sc.objects_size(), 1);
+  EXPECT_TRUE(sc.objects(0).sleeping());
 }
 
 TEST(RheodScene, ObjectFallsAndStreamsTopologyOnceThenPositions) {

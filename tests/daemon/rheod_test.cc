@@ -2,8 +2,11 @@
 #include <gtest/gtest.h>
 
 #include <csignal>
+#include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <sstream>
 
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "grpc/reflection/v1alpha/reflection.grpc.pb.h"
@@ -222,6 +225,162 @@ TEST(RheodStartup, SecondDaemonOnTheSameDataDirIsRefused) {
   RunResult r = RunProgram({RHEOD_PATH, "--listen", "127.0.0.1:0", "--data-dir", first.data_dir()});
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("in use by another rheod"), std::string::npos) << r.err;
+}
+
+// The size of the next frame on the wire [bytes].
+size_t FrameBytes(RheodProcess& d) {
+  auto frames = v1::FrameService::NewStub(d.channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, 10s);
+  v1::WatchFramesRequest w;
+  w.set_rate_hz(30);
+  auto reader = frames->WatchFrames(&ctx, w);
+  v1::Frame f;
+  size_t bytes = 0;
+  if (reader->Read(&f)) bytes = f.ByteSizeLong();
+  ctx.TryCancel();
+  reader->Finish();
+  return bytes;
+}
+
+TEST(RheodLimits, HugeStringsAreRefusedWithAShortMessageAndFramesStaySmall) {
+  RheodProcess d({"--device", "network"});
+  ASSERT_TRUE(d.started()) << d.log();
+  const size_t before = FrameBytes(d);
+  ASSERT_GT(before, 0u);
+  auto dev = v1::DeviceService::NewStub(d.channel());
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::AcquireLeaseRequest req;
+    req.set_client_name(std::string(5u << 20, 'n'));
+    v1::Lease lease;
+    grpc::Status s = dev->AcquireLease(&ctx, req, &lease);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << s.error_message().size();
+    EXPECT_LT(s.error_message().size(), 200u);
+    EXPECT_NE(s.error_message().find("client_name"), std::string::npos) << s.error_message();
+    EXPECT_NE(s.error_message().find("200"), std::string::npos) << s.error_message();
+  }
+  auto objects = v1::ObjectService::NewStub(d.channel());
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::GetObjectRequest req;
+    req.set_id(std::string(10u << 20, '\x01'));
+    v1::Object o;
+    grpc::Status s = objects->GetObject(&ctx, req, &o);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << s.error_message().size();
+    EXPECT_LT(s.error_message().size(), 200u);
+    EXPECT_NE(s.error_message().find("id is 10485760 bytes"), std::string::npos)
+        << s.error_message();
+    EXPECT_NE(s.error_message().find("\\x01"), std::string::npos) << s.error_message();
+  }
+  {
+    // Nested: a parameter name inside AddToScene.
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    auto scene = v1::SceneService::NewStub(d.channel());
+    v1::AddToSceneRequest req;
+    req.set_object_id("x");
+    req.add_overrides()->set_name(std::string(1u << 20, 'k'));
+    v1::SceneObject so;
+    grpc::Status s = scene->AddToScene(&ctx, req, &so);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_LT(s.error_message().size(), 200u);
+    EXPECT_NE(s.error_message().find("overrides[0].name"), std::string::npos) << s.error_message();
+  }
+  {
+    // An unknown id is quoted short: NOT_FOUND, not a transport error.
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::GetObjectRequest req;
+    req.set_id(std::string(100, 'z'));
+    v1::Object o;
+    grpc::Status s = objects->GetObject(&ctx, req, &o);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::NOT_FOUND);
+    EXPECT_LT(s.error_message().size(), 100u) << s.error_message();
+  }
+  // A fitting name is granted, and the frames do not grow by more than it.
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::AcquireLeaseRequest req;
+    req.set_client_name("alice");
+    v1::Lease lease;
+    EXPECT_TRUE(dev->AcquireLease(&ctx, req, &lease).ok());
+  }
+  const size_t after = FrameBytes(d);
+  EXPECT_LT(after, before + 64) << before << " -> " << after << " bytes";
+}
+
+TEST(RheodStartup, SecondDaemonOnTheSamePortIsRefused) {
+  RheodProcess first;
+  ASSERT_TRUE(first.started()) << first.log();
+  // Its own data directory, so only the port is shared.
+  RheodProcess second({"--listen", first.address()});
+  EXPECT_FALSE(second.started()) << second.log();
+  EXPECT_EQ(second.WaitForExit(10s), 1) << second.log();
+  EXPECT_NE(second.log().find("cannot listen on " + first.address()), std::string::npos)
+      << second.log();
+  // The first one still serves.
+  auto stub = grpc::health::v1::Health::NewStub(first.channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  grpc::health::v1::HealthCheckResponse r;
+  EXPECT_TRUE(stub->Check(&ctx, {}, &r).ok());
+}
+
+// The TCP ports a process listens on, from the socket inodes of /proc/PID/fd and the LISTEN
+// rows (state 0A) of /proc/net/tcp and tcp6.
+std::vector<int> ListeningPorts(int pid) {
+  std::set<std::string> inodes;
+  std::error_code ec;
+  for (const auto& e :
+       std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/fd", ec)) {
+    std::error_code lec;
+    const std::string target = std::filesystem::read_symlink(e.path(), lec).string();
+    if (target.rfind("socket:[", 0) == 0) inodes.insert(target.substr(8, target.size() - 9));
+  }
+  std::vector<int> ports;
+  for (const char* table : {"/proc/net/tcp", "/proc/net/tcp6"}) {
+    std::ifstream in(table);
+    std::string line;
+    std::getline(in, line);  // header
+    while (std::getline(in, line)) {
+      std::istringstream row(line);
+      std::string sl, local, remote, state, queues, timer, retr, uid, timeout, inode;
+      row >> sl >> local >> remote >> state >> queues >> timer >> retr >> uid >> timeout >> inode;
+      if (state != "0A" || !inodes.count(inode)) continue;
+      ports.push_back(std::stoi(local.substr(local.rfind(':') + 1), nullptr, 16));
+    }
+  }
+  return ports;
+}
+
+TEST(RheodStartup, PortZeroOpensExactlyTheOneLoggedPort) {
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  const int logged = std::stoi(d.address().substr(d.address().rfind(':') + 1));
+  const std::vector<int> ports = ListeningPorts(d.pid());
+  std::string listed;
+  for (int p : ports) listed += std::to_string(p) + " ";
+  ASSERT_EQ(ports.size(), 1u) << "listening ports: " << listed << "; logged " << logged;
+  EXPECT_EQ(ports[0], logged);
+}
+
+TEST(RheodStartup, NonLoopbackListenWarnsWhatIsExposed) {
+  RheodProcess d({"--listen", "0.0.0.0:0"});
+  ASSERT_TRUE(d.WaitForLog("listening on", 30s)) << d.log();
+  ASSERT_TRUE(d.WaitForLog("not a loopback address", 5s)) << d.log();
+  const std::string log = d.log();
+  EXPECT_NE(log.find("whole rheo.v1 API"), std::string::npos) << log;
+  EXPECT_NE(log.find("no authentication"), std::string::npos) << log;
+  EXPECT_NE(log.find("plaintext"), std::string::npos) << log;
+  EXPECT_EQ(d.Terminate(10s), 0) << d.log();
+  // Loopback stays quiet.
+  RheodProcess local;
+  ASSERT_TRUE(local.started()) << local.log();
+  EXPECT_EQ(local.log().find("not a loopback address"), std::string::npos) << local.log();
 }
 
 TEST(RheodStartup, BadFlagsAreRefusedWithAMessage) {

@@ -9,6 +9,7 @@
 
 #include "daemon/api/convert.h"
 #include "daemon/api/grpc_status.h"
+#include "daemon/api/limits.h"
 #include "daemon/api/services.h"
 #include "daemon/device/tool_placement.h"
 
@@ -68,6 +69,7 @@ grpc::Status DeviceServiceImpl::GetDeviceStatus(grpc::ServerContext*,
 
 grpc::Status DeviceServiceImpl::Calibrate(grpc::ServerContext*, const v1::CalibrateRequest* req,
                                           v1::CalibrateResponse* out) {
+  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (grpc::Status s = NeedLease(ctx_, req->lease_id(), ctx_.device_link->emergency_stopped());
       !s.ok())
@@ -87,6 +89,7 @@ grpc::Status DeviceServiceImpl::Calibrate(grpc::ServerContext*, const v1::Calibr
 
 grpc::Status DeviceServiceImpl::AcquireLease(grpc::ServerContext*,
                                              const v1::AcquireLeaseRequest* req, v1::Lease* out) {
+  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (grpc::Status s = CheckLeaseDuration(req->duration_s()); !s.ok()) return s;
   auto l = ctx_.leases->Acquire(req->client_name(), req->duration_s());
@@ -97,6 +100,7 @@ grpc::Status DeviceServiceImpl::AcquireLease(grpc::ServerContext*,
 
 grpc::Status DeviceServiceImpl::RenewLease(grpc::ServerContext*, const v1::RenewLeaseRequest* req,
                                            v1::Lease* out) {
+  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (grpc::Status s = CheckLeaseDuration(req->duration_s()); !s.ok()) return s;
   auto l = ctx_.leases->Renew(req->lease_id(), req->duration_s());
@@ -108,6 +112,7 @@ grpc::Status DeviceServiceImpl::RenewLease(grpc::ServerContext*, const v1::Renew
 grpc::Status DeviceServiceImpl::ReleaseLease(grpc::ServerContext*,
                                              const v1::ReleaseLeaseRequest* req,
                                              v1::ReleaseLeaseResponse*) {
+  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (Status s = ctx_.leases->Release(req->lease_id()); !s.ok()) return ToGrpc(s.error());
   return grpc::Status::OK;
@@ -116,6 +121,7 @@ grpc::Status DeviceServiceImpl::ReleaseLease(grpc::ServerContext*,
 grpc::Status DeviceServiceImpl::EmergencyStop(grpc::ServerContext*,
                                               const v1::EmergencyStopRequest* req,
                                               v1::EmergencyStopResponse* out) {
+  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (req->engage()) {
     ctx_.device_link->EmergencyStop();
@@ -146,6 +152,7 @@ grpc::Status DeviceServiceImpl::ToolStream(
   std::string lease_id;
   uint64_t used = 0;
   while (stream->Read(&in)) {
+    if (grpc::Status s = CheckStringLimits(in); !s.ok()) return s;
     if (lease_id.empty()) lease_id = in.lease_id();
     if (!in.lease_id().empty() && in.lease_id() != lease_id)
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
@@ -192,6 +199,7 @@ grpc::Status DeviceServiceImpl::ToolStream(
 grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext*,
                                               const v1::SimulatedHandRequest* req,
                                               v1::SimulatedHandResponse* out) {
+  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   drivers::SpidarEmulator* emu = ctx_.device_link->emulator();
   if (!emu)
@@ -207,7 +215,12 @@ grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext*,
       pose.position = Vec3(p.x(), p.y(), p.z());
       if (req->hold().has_orientation()) {
         const auto& o = req->hold().orientation();
-        pose.orientation = Eigen::Quaterniond(o.w(), o.x(), o.y(), o.z()).normalized();
+        const Eigen::Quaterniond q(o.w(), o.x(), o.y(), o.z());
+        if (!q.coeffs().allFinite() || !(q.norm() > 1e-6))
+          return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                              "hold orientation must be a finite, non-zero quaternion (w, x, y, "
+                              "z); leave it unset for upright");
+        pose.orientation = q.normalized();
       }
       const Vec3 half = ctx_.device_link->info().workspace_half_extent;
       if (!pose.position.allFinite() || (pose.position.array().abs() > half.array()).any())

@@ -9,6 +9,7 @@
 
 #include "common/format.h"
 #include "common/status.h"
+#include "daemon/api/limits.h"
 
 namespace rheo::daemon {
 
@@ -28,8 +29,8 @@ class LeaseManager {
     std::lock_guard<std::mutex> lock(mutex_);
     const auto now = Clock::now();
     if (Held(now))
-      return FailedPrecondition("the device is leased to '" + lease_.holder + "' for another " +
-                                Seconds(lease_.expires - now) +
+      return FailedPrecondition("the device is leased to " + QuoteForMessage(lease_.holder) +
+                                " for another " + Seconds(lease_.expires - now) +
                                 " s; wait for it to expire or ask them to release it");
     lease_.id = NewId();
     lease_.holder = holder.empty() ? "anonymous" : holder;
@@ -81,10 +82,11 @@ class LeaseManager {
           "acquire) and pass its lease_id");
     if (!Held(now) || id != lease_.id) {
       if (Held(now))
-        return FailedPrecondition(
-            "lease " + id + " is not the live lease; the device is leased to '" + lease_.holder +
-            "' for another " + Seconds(lease_.expires - now) + " s");
-      return FailedPrecondition("lease " + id +
+        return FailedPrecondition("lease " + QuoteForMessage(id) +
+                                  " is not the live lease; the device is leased to " +
+                                  QuoteForMessage(lease_.holder) + " for another " +
+                                  Seconds(lease_.expires - now) + " s");
+      return FailedPrecondition("lease " + QuoteForMessage(id) +
                                 " has expired or was released; acquire a new one (AcquireLease)");
     }
     return Status::Ok();

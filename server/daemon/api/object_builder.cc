@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 
 #include "daemon/api/convert.h"
 #include "mesh/mesh.h"
@@ -44,12 +45,18 @@ const char* SketchKind(const v1::Sketch& s) {
   }
 }
 
+// %g: small and large values keep their digits (1e-09, not 0.000000).
+std::string Num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
 Status CheckRange(const char* field, double v, double lo, double hi, const char* unit) {
   if (v == 0) return Status::Ok();  // 0 = default
   if (!(v >= lo && v <= hi))
-    return InvalidArgument(std::string(field) + " must be 0 (default) or between " +
-                           std::to_string(lo) + " and " + std::to_string(hi) + " " + unit +
-                           "; got " + std::to_string(v));
+    return InvalidArgument(std::string(field) + " must be 0 (default) or between " + Num(lo) +
+                           " and " + Num(hi) + (*unit ? " " : "") + unit + "; got " + Num(v));
   return Status::Ok();
 }
 

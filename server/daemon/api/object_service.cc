@@ -3,6 +3,7 @@
 
 #include "common/tet_mesh_io.h"
 #include "daemon/api/grpc_status.h"
+#include "daemon/api/limits.h"
 #include "daemon/api/object_builder.h"
 #include "daemon/api/services.h"
 #include "mesh/mesh.h"
@@ -20,6 +21,13 @@ std::chrono::steady_clock::time_point SteadyDeadline(const grpc::ServerContext& 
   return now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(d - now_sys);
 }
 
+// The store's errors with the id quoted short and escaped.
+grpc::Status StoreError(const Error& e, const std::string& id) {
+  if (e.code == ErrorCode::kNotFound)
+    return ToGrpc(NotFound("no object with id " + QuoteForMessage(id)));
+  return ToGrpc(e);
+}
+
 grpc::Status ObjectFromMeta(const StoredObject& o, v1::Object* out) {
   if (!out->ParseFromString(o.meta))
     return grpc::Status(grpc::StatusCode::DATA_LOSS, "stored object " + o.id + " is unreadable");
@@ -31,6 +39,7 @@ grpc::Status ObjectFromMeta(const StoredObject& o, v1::Object* out) {
 grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
                                              const v1::CreateObjectRequest* request,
                                              grpc::ServerWriter<v1::CreateObjectProgress>* writer) {
+  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
   if (Status s = ValidateCreateRequest(*request); !s.ok()) return ToGrpc(s.error());
   if (ctx_.shutting_down->load())
     return grpc::Status(grpc::StatusCode::UNAVAILABLE, "shutting down");
@@ -82,6 +91,11 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
       (*job)->Cancel();
       return grpc::Status(grpc::StatusCode::CANCELLED, "client cancelled " + job_id);
     }
+    if (ctx_.shutting_down->load()) {
+      (*job)->Cancel();
+      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                          "rheod is shutting down; " + job_id + " was cancelled");
+    }
     if (!(*job)->Pop(ev, std::chrono::milliseconds(50), done)) continue;
     if (ev.error) {
       Error e = *ev.error;
@@ -112,6 +126,7 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
 
 grpc::Status ObjectServiceImpl::CancelJob(grpc::ServerContext*, const v1::CancelJobRequest* request,
                                           v1::CancelJobResponse* out) {
+  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
   if (request->job_id().empty()) return ToGrpc(InvalidArgument("job_id is empty"));
   out->set_cancelled(ctx_.jobs->Cancel(request->job_id()));
   return grpc::Status::OK;
@@ -120,6 +135,7 @@ grpc::Status ObjectServiceImpl::CancelJob(grpc::ServerContext*, const v1::Cancel
 grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext*,
                                                const v1::ExtractContourRequest* request,
                                                v1::ContourReport* out) {
+  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
   v1::CreateObjectRequest check;
   *check.mutable_sketch() = request->sketch();
   *check.mutable_contour_options() = request->options();
@@ -133,6 +149,7 @@ grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext*,
 grpc::Status ObjectServiceImpl::ListObjects(grpc::ServerContext*,
                                             const v1::ListObjectsRequest* request,
                                             v1::ListObjectsResponse* out) {
+  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
   uint32_t n = request->page_size() == 0 ? 100 : std::min<uint32_t>(request->page_size(), 1000);
   std::string next;
   auto page = ctx_.store->List(n, request->page_token(), &next);
@@ -145,23 +162,27 @@ grpc::Status ObjectServiceImpl::ListObjects(grpc::ServerContext*,
 
 grpc::Status ObjectServiceImpl::GetObject(grpc::ServerContext*, const v1::GetObjectRequest* request,
                                           v1::Object* out) {
+  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
   auto o = ctx_.store->Get(request->id(), /*with_mesh=*/false);
-  if (!o.ok()) return ToGrpc(o.error());
+  if (!o.ok()) return StoreError(o.error(), request->id());
   return ObjectFromMeta(*o, out);
 }
 
 grpc::Status ObjectServiceImpl::DeleteObject(grpc::ServerContext*,
                                              const v1::DeleteObjectRequest* request,
                                              v1::DeleteObjectResponse*) {
-  if (Status s = ctx_.store->Delete(request->id()); !s.ok()) return ToGrpc(s.error());
+  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
+  if (Status s = ctx_.store->Delete(request->id()); !s.ok())
+    return StoreError(s.error(), request->id());
   return grpc::Status::OK;
 }
 
 grpc::Status ObjectServiceImpl::ExportObject(grpc::ServerContext*,
                                              const v1::ExportObjectRequest* request,
                                              grpc::ServerWriter<v1::ExportChunk>* writer) {
+  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
   auto o = ctx_.store->Get(request->id(), /*with_mesh=*/true);
-  if (!o.ok()) return ToGrpc(o.error());
+  if (!o.ok()) return StoreError(o.error(), request->id());
   std::string data, type;
   switch (request->format()) {
     case v1::EXPORT_FORMAT_VTU: data = WriteVtu(o->mesh), type = "model/vnd.vtu+xml"; break;

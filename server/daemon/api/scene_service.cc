@@ -3,6 +3,7 @@
 
 #include "daemon/api/convert.h"
 #include "daemon/api/grpc_status.h"
+#include "daemon/api/limits.h"
 #include "daemon/api/services.h"
 #include "sim/sim.h"
 
@@ -26,8 +27,17 @@ grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetScene
   out->set_gravity(defaults.gravity);
   out->set_floor_height(defaults.floor_height);
   auto entries = ctx_.scene->All();
+  // Sleeping as the latest frame has it (the hub keeps one at least every 100 ms).
+  std::shared_ptr<const FrameSnapshot> snap;
+  if (!entries.empty())
+    snap = ctx_.hub->WaitNewer(0, std::chrono::steady_clock::now() + std::chrono::seconds(1),
+                               [] { return false; });
   for (const auto& e : entries) {
-    FillSceneObject(*e, false, out->add_objects());
+    bool sleeping = false;
+    for (uint32_t i = 0; snap && i < snap->frame.object_count; ++i)
+      if (snap->frame.objects[i].instance_id == e->instance_id)
+        sleeping = snap->frame.objects[i].sleeping;
+    FillSceneObject(*e, sleeping, out->add_objects());
     out->set_gravity(e->params.gravity);
     out->set_floor_height(e->params.floor_height);
   }
@@ -36,6 +46,7 @@ grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetScene
 
 grpc::Status SceneServiceImpl::AddToScene(grpc::ServerContext*, const v1::AddToSceneRequest* req,
                                           v1::SceneObject* out) {
+  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   return AddObjectToScene(ctx_, *req, /*fresh=*/nullptr, out);
 }
 
@@ -158,6 +169,7 @@ grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
 grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
                                              const v1::SetParametersRequest* req,
                                              v1::SetParametersResponse* out) {
+  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
   std::vector<std::shared_ptr<const SceneEntry>> targets;
   if (req->instance_id() == 0) {

@@ -212,6 +212,11 @@ void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, Too
   } else {
     ++t_.device_errors;
   }
+  // A line whose exchanges keep failing is not a connection, whatever the port says.
+  constexpr double kLinkDownAbove = 0.5, kLinkUpBelow = 0.1, kShareWeight = 1.0 / 32.0;
+  exchange_failure_share_ += kShareWeight * ((s.ok() ? 0.0 : 1.0) - exchange_failure_share_);
+  if (exchange_failure_share_ > kLinkDownAbove) link_down_ = true;
+  if (exchange_failure_share_ < kLinkUpBelow) link_down_ = false;
 
   // A stall (watchdog trip, a missed reply) latched a stop; after enough good ticks, and unless
   // someone pressed the emergency stop, the loop clears it.
@@ -276,7 +281,7 @@ void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, Too
     ++t_.deadline_misses;
 
   const drivers::DeviceStatus& st = device_->status();
-  t_.connected = st.connected;
+  t_.connected = st.connected && !link_down_;
   t_.calibrated = st.calibrated;
   t_.in_contact = in_contact;
   t_.emergency_stopped = estop_.load(std::memory_order_relaxed);

@@ -124,6 +124,10 @@ class DeviceLink final : public TickDevice {
   int forced_count_ = 0;
   int healthy_ticks_ = 0;
   bool dog_armed_ = false;
+  /// Share of recent exchanges that failed (moving average over about 32 exchanges): past
+  /// kLinkDownAbove the link is reported disconnected until it falls below kLinkUpBelow.
+  double exchange_failure_share_ = 0.0;
+  bool link_down_ = false;
   ToolTelemetry t_;
 };
 

@@ -102,8 +102,11 @@ class JobPool {
       else
         job->Push(stop_event_(*stop));
       job->Finish();
-      std::lock_guard<std::mutex> l(mutex_);
-      jobs_.erase(job->id());
+      {
+        std::lock_guard<std::mutex> l(mutex_);
+        jobs_.erase(job->id());
+      }
+      idle_.notify_all();
     });
     return job;
   }
@@ -122,13 +125,31 @@ class JobPool {
     return static_cast<int>(jobs_.size());
   }
 
+  /// Asks every job in flight to stop; does not wait.
+  void CancelAll() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto& [id, job] : jobs_) job->Cancel();
+  }
+
   /// Cancels everything and joins the workers.
   void Shutdown() {
+    CancelAll();
+    pool_.join();
+  }
+
+  /// Cancels everything and waits until `deadline` for the jobs in flight to end. Returns true
+  /// with the workers joined; false when some job still runs at the deadline (work that does not
+  /// check ShouldStop often enough). Then the workers are not joined, and the pool must not be
+  /// destroyed while that job runs: the caller leaves the process instead (std::_Exit), which
+  /// is safe for the store because each object is one transaction.
+  bool Shutdown(std::chrono::steady_clock::time_point deadline) {
+    CancelAll();
     {
-      std::lock_guard<std::mutex> lock(mutex_);
-      for (auto& [id, job] : jobs_) job->Cancel();
+      std::unique_lock<std::mutex> lock(mutex_);
+      if (!idle_.wait_until(lock, deadline, [&] { return jobs_.empty(); })) return false;
     }
     pool_.join();
+    return true;
   }
 
  private:
@@ -136,6 +157,7 @@ class JobPool {
   int max_in_flight_;
   std::function<Event(Error)> stop_event_;
   std::mutex mutex_;
+  std::condition_variable idle_;  // a job left jobs_
   std::map<std::string, JobPtr> jobs_;
   uint64_t next_id_ = 0;
 };
