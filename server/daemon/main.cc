@@ -165,6 +165,10 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  // SIGINT and SIGTERM are caught from here on (and queued until the shutdown handler waits for
+  // them below), so a signal during start-up still shuts down in order and exits 0.
+  boost::asio::io_context io;
+  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
 
   auto logger = spdlog::stderr_color_mt("rheod");
   spdlog::set_default_logger(logger);
@@ -321,8 +325,6 @@ int main(int argc, char** argv) {
   std::condition_variable stop_cv;
   bool stopped = false;
   std::thread hard_stop;
-  boost::asio::io_context io;
-  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code&, int signo) {
     signalled = std::chrono::steady_clock::now();
     spdlog::info("signal {} received, shutting down", signo);

@@ -244,9 +244,27 @@ grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext*,
                         "press.depth_m must be in [0, 0.05] m and press.seconds in [0, 60] s");
   const v1::Press& press = req->press();
   const ToolTelemetry t = ctx_.engine->tool();
+  // The press is planned on objects at rest: a surface measured while the object still falls
+  // would be left behind (wait up to 3 s for every vertex to move less than 1 cm/s).
   auto snap = ctx_.hub->WaitNewer(0, std::chrono::steady_clock::now() + std::chrono::seconds(2),
                                   [] { return false; });
   if (!snap) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "no frame from the loop yet");
+  const auto settle_end = std::chrono::steady_clock::now() + std::chrono::seconds(3);
+  while (std::chrono::steady_clock::now() < settle_end) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    auto next = ctx_.hub->WaitNewer(snap->seq, settle_end, [] { return false; });
+    if (!next) break;
+    const LoopFrame& a = snap->frame;
+    const LoopFrame& b = next->frame;
+    const double dt = static_cast<double>(b.tick - a.tick) *
+                      static_cast<double>(ctx_.engine->loop().options().period_ns) * 1e-9;
+    snap = next;
+    if (a.scene_revision != b.scene_revision || a.positions.size() != b.positions.size()) continue;
+    float moved = 0.0f;
+    for (size_t k = 0; k < a.positions.size(); ++k)
+      moved = std::max(moved, std::abs(b.positions[k] - a.positions[k]));
+    if (dt > 0.0 && moved < 0.01 * dt) break;  // every vertex slower than 1 cm/s
+  }
   const LoopFrame& f = snap->frame;
   if (f.object_count == 0)
     return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,

@@ -31,22 +31,24 @@ Vec3 PressPoint(std::span<const uint32_t> triangles, std::span<const Vec3> posit
   };
   std::vector<double> lowest(static_cast<size_t>(nx) * nz, std::numeric_limits<double>::max());
   for (const Vec3& x : positions) lowest[column(x)] = std::min(lowest[column(x)], x.y());
-  // The up-facing surface vertex with the most material under it (its height above the lowest
-  // point of its column); the higher one on a tie (within 1 mm). A thin lobe that sticks up has
-  // little below it; the body of a flat-lying object has the most.
+  // Among the up-facing surface vertices with at least half the most material under any of them
+  // (height above the lowest point of its column), the highest: a thin lobe that sticks up has
+  // little below it.
   const double cos30 = std::sqrt(3.0) / 2.0;
-  int best = -1, highest = 0;
-  double best_depth = -1.0;
+  std::vector<double> depth(positions.size(), -1.0);
+  double deepest = -1.0;
+  int highest = 0;
   for (size_t i = 0; i < positions.size(); ++i) {
     if (positions[i].y() > positions[highest].y()) highest = static_cast<int>(i);
     const double len = normal[i].norm();
     if (!on_surface[i] || !(len > 0.0) || normal[i].y() < cos30 * len) continue;
-    const double depth = positions[i].y() - lowest[column(positions[i])];
-    if (best < 0 || depth > best_depth + 1e-3 ||
-        (depth > best_depth - 1e-3 && positions[i].y() > positions[best].y())) {
-      best = static_cast<int>(i);
-      best_depth = std::max(best_depth, depth);
-    }
+    depth[i] = positions[i].y() - lowest[column(positions[i])];
+    deepest = std::max(deepest, depth[i]);
+  }
+  int best = -1;
+  for (size_t i = 0; i < positions.size(); ++i) {
+    if (depth[i] < 0.0 || depth[i] < 0.5 * deepest) continue;
+    if (best < 0 || positions[i].y() > positions[best].y()) best = static_cast<int>(i);
   }
   return positions[best >= 0 ? best : highest];
 }

@@ -20,10 +20,10 @@ inline constexpr double kToolClearance = 0.005;
 inline constexpr double kPressColumn = 0.006;
 
 /// The point of an object's surface that a press straight down meets squarely: among the
-/// vertices whose (area-weighted) normal is within 30 degrees of straight up, the one with the
-/// most of the object under it (height above the lowest point of its 6 mm column); the highest
-/// vertex when none faces up. `triangles` holds 3 indices into `positions` per surface triangle,
-/// outward.
+/// vertices whose (area-weighted) normal is within 30 degrees of straight up and that have at
+/// least half as much of the object under them (height above the lowest point of its 6 mm
+/// column) as the one with the most, the highest; the highest vertex when none faces up.
+/// `triangles` holds 3 indices into `positions` per surface triangle, outward.
 Vec3 PressPoint(std::span<const uint32_t> triangles, std::span<const Vec3> positions);
 
 /// The scene position for the device frame's origin when an object enters an empty scene: the
