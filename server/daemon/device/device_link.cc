@@ -334,7 +334,8 @@ std::string DeviceLink::Shutdown() {
     line += "last command received sets string tensions [";
     bool all_min = true;
     for (int i = 0; i < snap.tensions.size(); ++i) {
-      line += (i ? " " : "") + Fixed(snap.tensions[i], 3);
+      if (i) line += ' ';
+      line += Fixed(snap.tensions[i], 3);
       if (snap.tensions[i] > min_tension_ + 0.01) all_min = false;
     }
     line += Format("] N; minimum %.3f N; all at minimum: %s", min_tension_, all_min ? "yes" : "no");
