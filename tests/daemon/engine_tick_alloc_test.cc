@@ -38,8 +38,8 @@ Built MakeBox(const DeviceLink& link, const ToolTelemetry& now, const char* pres
   std::vector<uint32_t> triangles;
   for (const auto& f : mesh->surface)
     for (int32_t v : f) triangles.push_back(static_cast<uint32_t>(v));
-  auto attached =
-      link.PrepareObject(triangles, b.object->positions(), b.object->model().mass, first, now);
+  auto attached = link.PrepareObject(mesh->surface, triangles, b.object->positions(),
+                                     b.object->model().mass, first, now);
   EXPECT_TRUE(attached.ok()) << attached.error().message;
   b.contact = std::move(attached->contact);
   return b;

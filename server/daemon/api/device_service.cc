@@ -272,22 +272,25 @@ grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext*,
   // The press line: a given point, a given object's top, the tool's own line, or the first
   // object's top when nothing is under the tool.
   const Vec3 tool = ToVec(t.device_position);
+  // Each object's surface triangles, looked up once (the entries keep them alive).
+  const auto entries = ctx_.scene->All();
+  auto triangles_of = [&entries](uint32_t instance_id) -> std::span<const uint32_t> {
+    for (const auto& e : entries)
+      if (e->instance_id == instance_id) return e->triangles;
+    return {};
+  };
   auto object_top = [&](uint32_t instance_id) -> std::optional<Vec3> {
-    auto entry = ctx_.scene->Find(instance_id);
-    for (uint32_t i = 0; entry && i < f.object_count; ++i) {
+    const std::span<const uint32_t> triangles = triangles_of(instance_id);
+    for (uint32_t i = 0; !triangles.empty() && i < f.object_count; ++i) {
       const FrameObject& fo = f.objects[i];
       if (fo.instance_id != instance_id) continue;
       std::vector<Vec3> x(fo.vertex_count);
       const float* p = f.positions.data() + 3u * fo.first;
       for (uint32_t k = 0; k < fo.vertex_count; ++k)
         x[k] = Vec3(p[3 * k], p[3 * k + 1], p[3 * k + 2]);
-      return PressPoint(entry->triangles, x);
+      return PressPoint(triangles, x);
     }
     return std::nullopt;
-  };
-  auto triangles_of = [this](uint32_t instance_id) {
-    auto entry = ctx_.scene->Find(instance_id);
-    return entry ? entry->triangles : std::vector<uint32_t>();
   };
   Vec3 line = tool;
   PressTarget target;

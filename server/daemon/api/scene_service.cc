@@ -109,9 +109,9 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   // scene the device's workspace placed over it.
   std::unique_ptr<ObjectContact> contact;
   if (ctx_.device_link) {
-    auto attached =
-        ctx_.device_link->PrepareObject(triangles, object->positions(), object->model().mass,
-                                        ctx_.scene->size() == 0, ctx_.engine->tool());
+    auto attached = ctx_.device_link->PrepareObject(mesh.surface, triangles, object->positions(),
+                                                    object->model().mass, ctx_.scene->size() == 0,
+                                                    ctx_.engine->tool());
     if (!attached.ok()) return ToGrpc(attached.error());
     if (attached->sets_origin) {
       Command oc;

@@ -22,11 +22,10 @@ std::array<double, 3> A3(const Vec3& v) {
 
 }  // namespace
 
-Result<DeviceLink::ObjectAttachment> DeviceLink::PrepareObject(std::span<const uint32_t> triangles,
-                                                               std::span<const Vec3> positions,
-                                                               std::span<const double> masses,
-                                                               bool first_in_scene,
-                                                               const ToolTelemetry& now) const {
+Result<DeviceLink::ObjectAttachment> DeviceLink::PrepareObject(
+    std::span<const std::array<int32_t, 3>> surface, std::span<const uint32_t> triangles,
+    std::span<const Vec3> positions, std::span<const double> masses, bool first_in_scene,
+    const ToolTelemetry& now) const {
   ObjectAttachment out;
   Vec3 origin(now.tool_origin[0], now.tool_origin[1], now.tool_origin[2]);
   if (first_in_scene) {
@@ -39,16 +38,11 @@ Result<DeviceLink::ObjectAttachment> DeviceLink::PrepareObject(std::span<const u
                   now.device_position[1] - now.tool_origin[1],
                   now.device_position[2] - now.tool_origin[2]);
   double min_mass = 0.0;
-  std::vector<std::array<int32_t, 3>> surface(triangles.size() / 3);
-  for (size_t t = 0; t < surface.size(); ++t)
-    for (int k = 0; k < 3; ++k) {
-      const uint32_t v = triangles[3 * t + k];
-      if (v >= positions.size() || v >= masses.size())
-        return InvalidArgument("surface triangle " + std::to_string(t) + " names vertex " +
-                               std::to_string(v) + " of " + std::to_string(positions.size()));
-      surface[t][k] = static_cast<int32_t>(v);
-      if (min_mass == 0.0 || masses[v] < min_mass) min_mass = masses[v];
-    }
+  for (const auto& f : surface)
+    for (int32_t v : f)
+      if (v >= 0 && static_cast<size_t>(v) < masses.size() &&
+          (min_mass == 0.0 || masses[v] < min_mass))
+        min_mass = masses[v];
   auto made = MakeContact(surface, positions, origin + grip, min_mass);
   if (!made.ok())
     return Error{made.error().code,

@@ -70,10 +70,13 @@ class DeviceLink final : public TickDevice {
     bool sets_origin = false;
     Vec3 tool_origin = Vec3::Zero();
   };
-  /// `triangles` (3 per surface triangle, outward) index `positions` (the object's nodes,
-  /// placed in the scene) and `masses` [kg]. `first_in_scene`: the scene is empty, so the
-  /// workspace is placed over this object (WorkspaceOriginOver); `now`: the latest telemetry.
-  Result<ObjectAttachment> PrepareObject(std::span<const uint32_t> triangles,
+  /// `surface` (the mesh's outward triangles, for the renderer) and `triangles` (the same, 3
+  /// indices each, as the scene registry and frames keep them) index `positions` (the object's
+  /// nodes, placed in the scene) and `masses` [kg]. `first_in_scene`: the scene is empty, so
+  /// the workspace is placed over this object (WorkspaceOriginOver); `now`: the latest
+  /// telemetry. The renderer checks the surface (a bad index is its error).
+  Result<ObjectAttachment> PrepareObject(std::span<const std::array<int32_t, 3>> surface,
+                                         std::span<const uint32_t> triangles,
                                          std::span<const Vec3> positions,
                                          std::span<const double> masses, bool first_in_scene,
                                          const ToolTelemetry& now) const;

@@ -82,9 +82,6 @@ bool SurfaceTopOnLine(std::span<const uint32_t> triangles, const float* xyz, uin
   return hit;
 }
 
-}  // namespace rheo::daemon
-
-namespace rheo::daemon {
 namespace {
 
 bool Inside(const Vec3& p, const Vec3& half) {

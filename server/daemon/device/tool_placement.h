@@ -67,10 +67,6 @@ PressTarget FindPressTarget(const LoopFrame& frame, const Vec3& at, TrianglesOf 
   return out;
 }
 
-}  // namespace rheo::daemon
-
-namespace rheo::daemon {
-
 /// A press of the emulated hand as waypoints of the grip in the device frame, in two phases: the
 /// first in the current workspace placement, then (when `replace_origin`) the workspace is
 /// moved to `new_origin` (the tool jumps, at a height above every object, to above the press
