@@ -1,5 +1,6 @@
 // rheod: the Rheo daemon. Owns the 1 kHz loop (and later the device and the scene), serves the
 // rheo.v1 gRPC API, and shuts down cleanly on SIGINT/SIGTERM.
+#include <execinfo.h>
 #include <fcntl.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
@@ -14,7 +15,9 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/signal_set.hpp>
 #include <condition_variable>
+#include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <filesystem>
 #include <mutex>
 #include <thread>
@@ -28,6 +31,27 @@
 #endif
 
 namespace {
+
+// An exception nobody caught ends the daemon; say which, and where, before the abort (the
+// default handler prints nothing a user or a CI log could act on).
+[[noreturn]] void ReportUncaught() {
+  std::fputs("rheod: terminating on an uncaught exception: ", stderr);
+  if (std::exception_ptr e = std::current_exception()) {
+    try {
+      std::rethrow_exception(e);
+    } catch (const std::exception& x) {
+      std::fputs(x.what(), stderr);
+    } catch (...) {
+      std::fputs("(not a std::exception)", stderr);
+    }
+  } else {
+    std::fputs("(none: std::terminate called directly)", stderr);
+  }
+  std::fputs("\n", stderr);
+  void* frames[64];
+  backtrace_symbols_fd(frames, backtrace(frames, 64), 2);
+  std::abort();
+}
 
 struct Flags {
   std::string listen = "127.0.0.1:50051";
@@ -115,6 +139,7 @@ std::string DefaultDataDir() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  std::set_terminate(ReportUncaught);
   Flags flags;
   CLI::App app{"rheod: the Rheo haptics daemon (sketch -> soft solid -> touch)"};
   app.set_config("--config", "", "TOML or INI file with the same keys as the long flags");

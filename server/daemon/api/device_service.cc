@@ -5,6 +5,7 @@
 #include <cmath>
 #include <optional>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "daemon/api/convert.h"
@@ -254,11 +255,12 @@ grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext*,
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     auto next = ctx_.hub->WaitNewer(snap->seq, settle_end, [] { return false; });
     if (!next) break;
-    const LoopFrame& a = snap->frame;
-    const LoopFrame& b = next->frame;
+    // `prev` keeps the older snapshot alive while the two are compared (the hub has let go of it).
+    const std::shared_ptr<const FrameSnapshot> prev = std::exchange(snap, next);
+    const LoopFrame& a = prev->frame;
+    const LoopFrame& b = snap->frame;
     const double dt = static_cast<double>(b.tick - a.tick) *
                       static_cast<double>(ctx_.engine->loop().options().period_ns) * 1e-9;
-    snap = next;
     if (a.scene_revision != b.scene_revision || a.positions.size() != b.positions.size()) continue;
     float moved = 0.0f;
     for (size_t k = 0; k < a.positions.size(); ++k)
