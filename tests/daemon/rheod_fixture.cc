@@ -1,12 +1,11 @@
 #include "rheod_fixture.h"
 
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
-
-#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -104,7 +103,8 @@ RheodProcess::~RheodProcess() {
   if (reader_.joinable()) reader_.join();
   if (stderr_fd_ >= 0) close(stderr_fd_);
   // A failed test shows what its daemon said (a crash's message and backtrace among it).
-  if (::testing::Test::HasFailure()) std::fprintf(stderr, "--- rheod's log ---\n%s\n", log().c_str());
+  if (::testing::Test::HasFailure())
+    std::fprintf(stderr, "--- rheod's log ---\n%s\n", log().c_str());
   std::error_code ec;
   if (owns_data_dir_ && !data_dir_.empty()) std::filesystem::remove_all(data_dir_, ec);
 }
