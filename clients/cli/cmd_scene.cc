@@ -37,8 +37,10 @@ int SceneAdd(const Global& g, const std::string& id, const std::string& preset,
   grpc::Status s =
       Unary<rheo::v1::SceneService>(g, &rheo::v1::SceneService::Stub::AddToScene, req, &o, 30.0);
   if (!s.ok()) return Fail(s);
-  std::printf("instance %u: %s as %s\n", o.instance_id(), o.object_id().c_str(),
-              o.preset().c_str());
+  std::printf("instance %u: %s as %s, %s integrator, about %.0f us a tick\n", o.instance_id(),
+              o.object_id().c_str(), o.preset().c_str(),
+              o.integrator() == rheo::v1::INTEGRATOR_IMPLICIT ? "implicit" : "symplectic Euler",
+              o.predicted_tick_us());
   return 0;
 }
 

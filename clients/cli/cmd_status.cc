@@ -48,6 +48,12 @@ int ShowStatus(const Global& g, bool json) {
         "last good state; see each object's restores in `rheoctl watch`)\n",
         (unsigned long long)l.restores());
   }
+  std::printf("  simulation: %.0f us a tick predicted for the awake scene, of %.0f us allowed\n",
+              l.predicted_sim_us(), l.sim_budget_us());
+  if (l.unstable_objects() > 0)
+    std::printf(
+        "  stopped objects: %u (restored 5 times within a second; set new parameters or reset)\n",
+        l.unstable_objects());
   std::printf("scene objects %u, stored objects %u, jobs %u, frame clients %u\n",
               st.scene_objects(), st.stored_objects(), st.running_jobs(), st.frame_clients());
   return 0;
@@ -77,8 +83,9 @@ std::string FrameLine(const rheo::v1::Frame& f, const std::map<uint32_t, uint32_
       std::snprintf(b, sizeof b, ", y %.4f..%.4f m", lo, hi);
       line += b;
     }
-    std::snprintf(b, sizeof b, ", volume %.3g m^3, KE %.2g J%s%s]", o.volume(), o.kinetic_energy(),
-                  o.sleeping() ? ", asleep" : "",
+    std::snprintf(b, sizeof b, ", volume %.3g m^3, KE %.2g J%s%s%s]", o.volume(),
+                  o.kinetic_energy(), o.sleeping() ? ", asleep" : "",
+                  o.unstable() ? ", STOPPED (unstable: set new parameters or reset)" : "",
                   o.restores() ? (", " + std::to_string(o.restores()) + " restores").c_str() : "");
     line += b;
   }

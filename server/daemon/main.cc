@@ -25,6 +25,7 @@
 #include "daemon/api/services.h"
 #include "daemon/loop/engine.h"
 #include "daemon/loop/frame_hub.h"
+#include "daemon/loop/tick_cost.h"
 
 #ifndef RHEO_VERSION
 #define RHEO_VERSION "0.0.0"
@@ -69,6 +70,7 @@ struct Flags {
   int max_jobs = 4;
   int job_timeout_s = 120;
   int64_t max_tets = 500000;
+  double sim_budget_percent = 60.0;
 };
 
 // Holds an exclusive lock on the data directory so two daemons never share one store.
@@ -184,6 +186,11 @@ int main(int argc, char** argv) {
   app.add_option("--max-tets", flags.max_tets, "largest tetrahedral mesh an object may have")
       ->check(CLI::Range(int64_t{1000}, int64_t{10000000}))
       ->capture_default_str();
+  app.add_option("--sim-budget", flags.sim_budget_percent,
+                 "share of each tick the scene's simulation may take [%]; a scene change or "
+                 "parameter set predicted to need more is refused")
+      ->check(CLI::Range(5.0, 95.0))
+      ->capture_default_str();
   app.add_flag("!--no-realtime", flags.realtime, "do not ask for SCHED_FIFO and locked memory");
   try {
     app.parse(argc, argv);
@@ -270,6 +277,9 @@ int main(int argc, char** argv) {
   eopts.loop.lock_memory = flags.realtime;
   Engine engine(eopts);
   if (device) engine.AttachDevice(device.get());
+  // Admission by cost: the tick's cost on this machine, measured before the loop starts (on a
+  // quiet core rather than beside it).
+  const rheo::sim::CostCoefficients tick_cost = rheo::daemon::MeasureTickCost();
   engine.Start();
   const auto& env = engine.loop().environment();
   spdlog::info("loop running at {:.0f} Hz (SCHED_FIFO {}, memory locked {})", flags.rate_hz,
@@ -296,6 +306,13 @@ int main(int argc, char** argv) {
   ctx.jobs = &jobs;
   ctx.build_limits.max_tets = flags.max_tets;
   ctx.job_timeout = std::chrono::seconds(flags.job_timeout_s);
+  ctx.tick_cost = tick_cost;
+  ctx.sim_budget_ns = flags.sim_budget_percent * 1e-2 * 1e9 / flags.rate_hz;
+  spdlog::info(
+      "tick cost model: {:.2f} ns per element and explicit substep, {:.2f} per implicit substep, "
+      "{:.2f} per CG iteration; the simulation may take {:.0f} us of each tick",
+      ctx.tick_cost.explicit_ns, ctx.tick_cost.implicit_ns, ctx.tick_cost.cg_ns,
+      ctx.sim_budget_ns * 1e-3);
 
   DaemonServiceImpl daemon_service(ctx);
   FrameServiceImpl frame_service(ctx);

@@ -48,7 +48,7 @@ void FillParameters(const sim::Parameters& p,
   }
 }
 
-void FillSceneObject(const SceneEntry& e, bool sleeping, v1::SceneObject* out) {
+void FillSceneObject(const SceneEntry& e, bool sleeping, bool unstable, v1::SceneObject* out) {
   out->set_instance_id(e.instance_id);
   out->set_object_id(e.object_id);
   out->set_preset(e.preset);
@@ -56,6 +56,8 @@ void FillSceneObject(const SceneEntry& e, bool sleeping, v1::SceneObject* out) {
   FillParameters(e.params, out->mutable_parameters());
   SetVec(e.position, out->mutable_position());
   out->set_sleeping(sleeping);
+  out->set_unstable(unstable);
+  out->set_predicted_tick_us(e.cost.ns * 1e-3);
 }
 
 void FillPercentiles(const rt::Histogram& h, v1::Percentiles* out) {

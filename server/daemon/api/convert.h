@@ -39,7 +39,7 @@ v1::Integrator ToProto(sim::Integrator integrator);
 /// Every parameter of the table with its value, unit, range and description.
 void FillParameters(const sim::Parameters& p,
                     google::protobuf::RepeatedPtrField<v1::Parameter>* out);
-void FillSceneObject(const SceneEntry& e, bool sleeping, v1::SceneObject* out);
+void FillSceneObject(const SceneEntry& e, bool sleeping, bool unstable, v1::SceneObject* out);
 
 /// A loop histogram as percentiles [us].
 void FillPercentiles(const rt::Histogram& h, v1::Percentiles* out);

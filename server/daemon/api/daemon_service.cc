@@ -28,6 +28,9 @@ grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetSta
   l->set_commands_applied(ctx_.engine->commands_applied());
   l->set_commands_rejected(ctx_.engine->commands_rejected());
   l->set_restores(ctx_.engine->restores());
+  l->set_predicted_sim_us(ctx_.scene->predicted_ns() * 1e-3);
+  l->set_sim_budget_us(ctx_.sim_budget_ns * 1e-3);
+  l->set_unstable_objects(ctx_.engine->unstable_objects());
   out->set_device(ctx_.device);
   if (ctx_.device_link) out->add_capabilities("device");
   out->set_frame_clients(static_cast<uint32_t>(ctx_.hub->clients()));

@@ -89,6 +89,7 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
       os->set_sleeping(fo.sleeping);
       os->set_kinetic_energy(fo.kinetic_energy);
       os->set_restores(fo.restores);
+      os->set_unstable(fo.unstable);
       const float* p = f.positions.data() + 3u * fo.first;
       os->set_volume(EnclosedVolume(p, fo.vertex_count, entry->triangles));
       if (request->positions()) os->mutable_positions()->Add(p, p + 3u * fo.vertex_count);

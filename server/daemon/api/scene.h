@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "common/geometry.h"
+#include "sim/cost.h"
 #include "sim/params.h"
 #include "sim/sim.h"
 
@@ -24,6 +25,7 @@ struct SceneEntry {
   std::vector<uint32_t> triangles;  // surface, 3 per triangle
   uint32_t vertex_count = 0;
   Vec3 position = Vec3::Zero();  // centre of the rest shape [m]
+  sim::TickCost cost;            // what one awake tick of it is predicted to take
   // The loop's object, for SimObject::Prepare only (const, reads what the loop never writes).
   // Owned by the loop; valid while this entry is in the registry, and used only under the
   // registry's mutation mutex, which RemoveFromScene also holds.
@@ -59,6 +61,14 @@ class SceneRegistry {
   size_t size() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return entries_.size();
+  }
+  /// Predicted simulation time of one tick of every object but `except` [ns].
+  double predicted_ns(uint32_t except = 0) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    double ns = 0.0;
+    for (auto& [id, e] : entries_)
+      if (id != except) ns += e->cost.ns;
+    return ns;
   }
   uint64_t total_vertices() const {
     std::lock_guard<std::mutex> lock(mutex_);

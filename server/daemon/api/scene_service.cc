@@ -1,20 +1,68 @@
 // SceneService: objects into and out of the loop, material parameters, run control.
 #include <algorithm>
 
+#include "common/format.h"
 #include "daemon/api/convert.h"
 #include "daemon/api/grpc_status.h"
 #include "daemon/api/limits.h"
 #include "daemon/api/services.h"
+#include "sim/cost.h"
 #include "sim/sim.h"
 
 namespace rheo::daemon {
 namespace {
 
+// The solver settings the 1 kHz loop takes: tighter than the simulation library's own ranges
+// (which serve offline runs too), so that no single setting can starve the loop. The cost check
+// below covers the combinations.
+struct LoopRange {
+  const char* name;
+  double sim::Parameters::*field;
+  double min;
+  double max;
+};
+constexpr LoopRange kLoopRanges[] = {
+    {"max_substeps", &sim::Parameters::max_substeps, 1.0, 256.0},
+    {"implicit_substeps", &sim::Parameters::implicit_substeps, 1.0, 16.0},
+    {"cg_max_iterations", &sim::Parameters::cg_max_iterations, 1.0, 200.0},
+    {"cg_tolerance", &sim::Parameters::cg_tolerance, 1e-10, 1.0},
+};
+
 Status ApplyParameterList(sim::Parameters& p,
                           const google::protobuf::RepeatedPtrField<v1::Parameter>& list) {
   for (const v1::Parameter& q : list)
     if (Status s = sim::SetParameterByName(p, q.name(), q.value()); !s.ok()) return s;
-  return sim::ValidateParameters(p);
+  if (Status s = sim::ValidateParameters(p); !s.ok()) return s;
+  for (const LoopRange& r : kLoopRanges) {
+    const double v = p.*r.field;
+    if (!(v >= r.min && v <= r.max))
+      return InvalidArgument("parameter '" + std::string(r.name) + "' = " + Num(v) +
+                             " is out of the range the 1 kHz loop takes, [" + Num(r.min) + ", " +
+                             Num(r.max) + "]");
+  }
+  return Status::Ok();
+}
+
+double TickSeconds(const DaemonContext& ctx) {
+  return static_cast<double>(ctx.engine->loop().options().period_ns) * 1e-9;
+}
+
+// Admission by cost: refuses a change whose predicted simulation time per tick, with the rest
+// of the scene's, would not fit the loop's budget.
+Status CheckFitsTheTick(const DaemonContext& ctx, const sim::Model& model,
+                        const sim::TickCost& cost, sim::Integrator integrator, double others_ns,
+                        const char* what) {
+  if (cost.ns + others_ns <= ctx.sim_budget_ns) return Status::Ok();
+  const double tick_ms = TickSeconds(ctx) * 1e3;
+  std::string msg = std::string(what) + " would take about " + Fixed(cost.ns * 1e-6, 2) +
+                    " ms of simulation in each " + Num(tick_ms) + " ms tick (" +
+                    sim::DescribeTickCost(model, cost, integrator) + ")";
+  if (others_ns > 0.0)
+    msg += ", on top of the " + Fixed(others_ns * 1e-6, 2) + " ms the rest of the scene takes";
+  msg += "; the simulation has " + Fixed(ctx.sim_budget_ns * 1e-6, 2) +
+         " ms of each tick (--sim-budget). Mesh the object coarser (a larger resolution), or "
+         "ask for fewer substeps, fewer CG iterations or a looser cg_tolerance";
+  return ResourceExhausted(msg);
 }
 
 }  // namespace
@@ -33,11 +81,13 @@ grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetScene
     snap = ctx_.hub->WaitNewer(0, std::chrono::steady_clock::now() + std::chrono::seconds(1),
                                [] { return false; });
   for (const auto& e : entries) {
-    bool sleeping = false;
+    bool sleeping = false, unstable = false;
     for (uint32_t i = 0; snap && i < snap->frame.object_count; ++i)
-      if (snap->frame.objects[i].instance_id == e->instance_id)
+      if (snap->frame.objects[i].instance_id == e->instance_id) {
         sleeping = snap->frame.objects[i].sleeping;
-    FillSceneObject(*e, sleeping, out->add_objects());
+        unstable = snap->frame.objects[i].unstable;
+      }
+    FillSceneObject(*e, sleeping, unstable, out->add_objects());
     out->set_gravity(e->params.gravity);
     out->set_floor_height(e->params.floor_height);
   }
@@ -87,6 +137,37 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   auto created = sim::SimObject::Create(mesh, params, integrator);
   if (!created.ok()) return ToGrpc(created.error());
   std::unique_ptr<sim::SimObject> object = std::move(created).value();
+  // Will it fit the tick, with what the scene already runs? When the client left the
+  // integrator to the daemon and the preset's would not fit (symplectic Euler on a fine or stiff
+  // object needs many substeps), the implicit integrator is taken if it does.
+  const double others_ns = ctx_.scene->predicted_ns();
+  auto predict = [&](sim::Integrator with,
+                     sim::PreparedParameters* prepared_out) -> Result<sim::TickCost> {
+    auto prepared = object->Prepare(params, with, TickSeconds(ctx_));
+    if (!prepared.ok()) return prepared.error();
+    const sim::TickCost c =
+        sim::PredictTickCost(object->model(), *prepared, with, TickSeconds(ctx_), ctx_.tick_cost);
+    if (prepared_out) *prepared_out = std::move(prepared).value();
+    return c;
+  };
+  auto cost = predict(integrator, nullptr);
+  if (!cost.ok()) return ToGrpc(cost.error());
+  if (req->integrator() == v1::INTEGRATOR_UNSPECIFIED &&
+      integrator == sim::Integrator::kSymplecticEuler &&
+      cost->ns + others_ns > ctx_.sim_budget_ns) {
+    sim::PreparedParameters prepared;
+    auto implicit = predict(sim::Integrator::kImplicitEuler, &prepared);
+    if (implicit.ok() && implicit->ns < cost->ns) {
+      integrator = sim::Integrator::kImplicitEuler;
+      object->SetIntegrator(integrator);
+      if (Status s = object->SetParameters(prepared); !s.ok()) return ToGrpc(s.error());
+      cost = implicit;
+    }
+  }
+  if (Status s =
+          CheckFitsTheTick(ctx_, object->model(), *cost, integrator, others_ns, "this object");
+      !s.ok())
+    return ToGrpc(s.error());
 
   // Placement: the rest shape's bounding-box centre goes to `position`; by default the object
   // stands centred over the origin, 2 cm above the floor.
@@ -130,6 +211,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   entry->params = params;
   entry->vertex_count = static_cast<uint32_t>(n);
   entry->position = target;
+  entry->cost = *cost;
   entry->object = object.get();
   entry->triangles = std::move(triangles);
   ctx_.scene->Put(entry);
@@ -147,7 +229,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   object.release();  // the loop owns it now
   contact.release();
   if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("object");
-  FillSceneObject(*entry, false, out);
+  FillSceneObject(*entry, false, false, out);
   return grpc::Status::OK;
 }
 
@@ -201,8 +283,25 @@ grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
       return ToGrpc(s.error());
     auto ready = next->object->Prepare(next->params, next->integrator, tick);
     if (!ready.ok()) return ToGrpc(ready.error());
+    next->cost =
+        sim::PredictTickCost(next->object->model(), *ready, next->integrator, tick, ctx_.tick_cost);
     prepared.push_back(std::move(ready).value());
     updated.push_back(std::move(next));
+  }
+  // The whole scene after the change must fit the tick.
+  double after_ns = 0.0;
+  for (const auto& e : ctx_.scene->All()) {
+    bool changed = false;
+    for (const auto& u : updated) changed = changed || u->instance_id == e->instance_id;
+    if (!changed) after_ns += e->cost.ns;
+  }
+  for (const auto& u : updated) {
+    const double others = after_ns;
+    after_ns += u->cost.ns;
+    if (Status s = CheckFitsTheTick(ctx_, u->object->model(), u->cost, u->integrator, others,
+                                    updated.size() == 1 ? "this change" : "these changes");
+        !s.ok())
+      return ToGrpc(s.error());
   }
   for (size_t k = 0; k < updated.size(); ++k) {
     const auto& next = updated[k];

@@ -18,6 +18,7 @@
 #include "rheo/v1/frames.grpc.pb.h"
 #include "rheo/v1/objects.grpc.pb.h"
 #include "rheo/v1/scene.grpc.pb.h"
+#include "sim/cost.h"
 
 namespace rheo::daemon {
 
@@ -49,6 +50,10 @@ struct DaemonContext {
   JobPool<JobEvent>* jobs = nullptr;
   BuildLimits build_limits;
   std::chrono::seconds job_timeout{120};
+  // Admission by cost: the tick's cost model on this machine (measured at start-up) and the
+  // share of each tick the simulation of the whole scene may take [ns].
+  sim::CostCoefficients tick_cost;
+  double sim_budget_ns = 600'000.0;
 };
 
 /// How long a service waits for the loop to apply a command it submitted [ns].

@@ -67,6 +67,12 @@ void Engine::Retire(Retired r) {
   (void)retired_.push(r);
 }
 
+void Engine::MarkStable(EngineSlot& slot) {
+  if (slot.unstable) unstable_objects_.fetch_sub(1, std::memory_order_relaxed);
+  slot.unstable = false;
+  slot.restores_in_window = 0;
+}
+
 int Engine::FindSlot(uint32_t instance_id) const {
   for (int i = 0; i < slot_count_; ++i)
     if (slots_[i].instance_id == instance_id) return i;
@@ -79,7 +85,10 @@ void Engine::Apply(const Command& c) {
     case Command::Type::kResume: paused_.store(false, std::memory_order_relaxed); break;
     case Command::Type::kReset:
       sim_ticks_ = 0;
-      for (int i = 0; i < slot_count_; ++i) slots_[i].object->Reset();
+      for (int i = 0; i < slot_count_; ++i) {
+        slots_[i].object->Reset();
+        MarkStable(slots_[i]);
+      }
       ++scene_revision_;
       break;
     case Command::Type::kStep: step_once_ = true; break;
@@ -95,6 +104,7 @@ void Engine::Apply(const Command& c) {
       int i = FindSlot(c.instance_id);
       if (i >= 0) {
         if (device_) device_->Forget(slots_[i]);
+        MarkStable(slots_[i]);
         Retire({slots_[i].object, nullptr, slots_[i].contact});
         slots_[i] = slots_[slot_count_ - 1];
         --slot_count_;
@@ -106,7 +116,10 @@ void Engine::Apply(const Command& c) {
       int i = FindSlot(c.instance_id);
       // The passes over the elements were done by SimObject::Prepare on the service's thread;
       // this copies the result in without allocating.
-      if (i >= 0 && c.params) (void)slots_[i].object->SetParameters(*c.params);
+      if (i >= 0 && c.params) {
+        (void)slots_[i].object->SetParameters(*c.params);
+        MarkStable(slots_[i]);  // new parameters get a new chance
+      }
       Retire({nullptr, c.params});
       break;
     }
@@ -129,8 +142,19 @@ void Engine::Tick(const rt::TickInfo& info) {
   const bool paused = paused_.load(std::memory_order_relaxed);
   if (!paused || step_once_) {
     for (int i = 0; i < slot_count_; ++i) {
-      sim::StepResult r = slots_[i].object->Step(info.dt);
-      if (r.restored) restores_.fetch_add(1, std::memory_order_relaxed);
+      EngineSlot& slot = slots_[i];
+      if (slot.unstable) continue;
+      const sim::StepResult r = slot.object->Step(info.dt);
+      if (!r.restored) continue;
+      restores_.fetch_add(1, std::memory_order_relaxed);
+      if (info.tick - slot.restore_window_start >= kRestoreWindowTicks) {
+        slot.restore_window_start = info.tick;
+        slot.restores_in_window = 0;
+      }
+      if (++slot.restores_in_window >= kRestoresBeforeStop) {
+        slot.unstable = true;
+        unstable_objects_.fetch_add(1, std::memory_order_relaxed);
+      }
     }
     ++sim_ticks_;
     step_once_ = false;
@@ -177,7 +201,8 @@ void Engine::Tick(const rt::TickInfo& info) {
                                               static_cast<uint32_t>(x.size()),
                                               o.sleeping(),
                                               static_cast<uint64_t>(o.events().restores),
-                                              o.kinetic_energy()};
+                                              o.kinetic_energy(),
+                                              slots_[i].unstable};
     first += static_cast<uint32_t>(x.size());
   }
   frames_.Publish();

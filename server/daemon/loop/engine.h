@@ -103,7 +103,16 @@ struct EngineSlot {
   uint32_t instance_id = 0;
   sim::SimObject* object = nullptr;
   ObjectContact* contact = nullptr;
+  // An object whose state keeps going non-finite or exploding is stopped (no longer stepped,
+  // shown in its last good state) after kRestoresBeforeStop restores within kRestoreWindowTicks,
+  // until its parameters change or the scene is reset: restoring it forever costs every tick.
+  uint64_t restore_window_start = 0;  // tick the current count began
+  uint32_t restores_in_window = 0;
+  bool unstable = false;
 };
+
+inline constexpr uint32_t kRestoresBeforeStop = 5;
+inline constexpr uint64_t kRestoreWindowTicks = 1000;
 
 /// The haptic side of each tick (DeviceLink, in rheod_device). Every method runs on the loop
 /// thread and must not allocate, log or block.
@@ -127,6 +136,7 @@ struct FrameObject {
   bool sleeping = false;
   uint64_t restores = 0;        // recoveries from a non-finite or exploding state so far
   double kinetic_energy = 0.0;  // [J]
+  bool unstable = false;        // stopped after repeated restores (EngineSlot::unstable)
 };
 
 /// What the loop publishes every tick. Preallocated; the loop fills it without allocating.
@@ -187,6 +197,8 @@ class Engine {
   uint64_t commands_applied() const { return commands_applied_.load(std::memory_order_relaxed); }
   uint64_t commands_rejected() const { return commands_rejected_.load(std::memory_order_relaxed); }
   uint64_t restores() const { return restores_.load(std::memory_order_relaxed); }
+  /// Objects stopped after repeated restores, now.
+  uint32_t unstable_objects() const { return unstable_objects_.load(std::memory_order_relaxed); }
   bool paused() const { return paused_.load(std::memory_order_relaxed); }
   double sim_time() const { return sim_time_.load(std::memory_order_relaxed); }
   int object_count() const { return object_count_.load(std::memory_order_relaxed); }
@@ -196,6 +208,7 @@ class Engine {
   void Apply(const Command& c);
   void Retire(Retired r);
   int FindSlot(uint32_t instance_id) const;
+  void MarkStable(EngineSlot& slot);
 
   EngineOptions options_;
   rt::Loop loop_;
@@ -207,6 +220,7 @@ class Engine {
   std::atomic<uint64_t> commands_applied_{0};
   std::atomic<uint64_t> commands_rejected_{0};
   std::atomic<uint64_t> restores_{0};
+  std::atomic<uint32_t> unstable_objects_{0};
   std::atomic<bool> paused_{false};
   std::atomic<double> sim_time_{0.0};
   std::atomic<int> object_count_{0};

@@ -1,6 +1,9 @@
 #include "daemon/loop/frame_hub.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
+#include <vector>
 
 namespace rheo::daemon {
 
@@ -47,6 +50,20 @@ double FrameHub::MaxRate() {
   return r;
 }
 
+void FrameHub::ReportStopped(const LoopFrame& f) {
+  std::vector<uint32_t> now;
+  for (uint32_t i = 0; i < f.object_count; ++i)
+    if (f.objects[i].unstable) now.push_back(f.objects[i].instance_id);
+  for (uint32_t id : now)
+    if (std::find(stopped_.begin(), stopped_.end(), id) == stopped_.end())
+      spdlog::warn(
+          "scene object {} stopped: its state was restored {} times within {} ticks (it cannot "
+          "run with these parameters at this tick); change them (SetParameters) or reset the "
+          "scene",
+          id, kRestoresBeforeStop, kRestoreWindowTicks);
+  stopped_ = std::move(now);
+}
+
 void FrameHub::Run() {
   pthread_setname_np(pthread_self(), "rheo-frames");
   auto next = std::chrono::steady_clock::now();
@@ -62,6 +79,7 @@ void FrameHub::Run() {
     if (!engine_.AcquireFrame() && latest_) continue;
     auto snap = std::make_shared<FrameSnapshot>();
     snap->frame = engine_.frame();
+    ReportStopped(snap->frame);
     {
       std::lock_guard<std::mutex> lock(mutex_);
       snap->seq = ++seq_;

@@ -64,6 +64,9 @@ class FrameHub {
  private:
   void Run();
   double MaxRate();
+  // Logs each object the loop newly stopped after repeated restores (hub thread only).
+  void ReportStopped(const LoopFrame& frame);
+  std::vector<uint32_t> stopped_;
 
   Engine& engine_;
   std::thread thread_;

@@ -1,0 +1,67 @@
+#include "daemon/loop/tick_cost.h"
+
+#include <algorithm>
+#include <chrono>
+#include <vector>
+
+#include "sim/primitives.h"
+
+namespace rheo::daemon {
+namespace {
+
+// Median time of one tick per (substep x element) [ns], over `ticks` ticks.
+double MedianTickNs(sim::SimObject& object, int ticks, double dt, int64_t elements,
+                    int32_t* substeps_out) {
+  std::vector<double> per;
+  per.reserve(static_cast<size_t>(ticks));
+  for (int i = 0; i < ticks; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const sim::StepResult r = object.Step(dt);
+    const double ns =
+        std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
+    *substeps_out = std::max(r.substeps, 1);
+    per.push_back(ns / (static_cast<double>(*substeps_out) * static_cast<double>(elements)));
+  }
+  std::nth_element(per.begin(), per.begin() + per.size() / 2, per.end());
+  return per[per.size() / 2];
+}
+
+}  // namespace
+
+sim::CostCoefficients MeasureTickCost() {
+  constexpr double kDt = 1e-3;
+  constexpr int kTicks = 40;
+  sim::CostCoefficients c;
+  auto mesh = sim::MakeBoxTetMesh(7, 4, 6, Vec3(0.06, 0.035, 0.05));
+  auto preset = sim::FindPreset("soft-jelly");
+  if (!mesh.ok() || !preset.ok()) return c;
+  sim::Parameters p = preset->params;
+  p.sleep_time = 0.0;  // never asleep: every tick does its work
+  p.max_substeps = 10000;
+  auto run = [&](sim::Integrator integrator, const sim::Parameters& params) -> double {
+    auto object = sim::SimObject::Create(*mesh, params, integrator);
+    if (!object.ok()) return 0.0;
+    const sim::Model& m = (*object)->model();
+    const int64_t elements = m.num_nodes + static_cast<int64_t>(m.edges.size()) +
+                             static_cast<int64_t>(m.faces.size()) +
+                             static_cast<int64_t>(m.tets.size());
+    int32_t substeps = 1;
+    (void)MedianTickNs(**object, 5, kDt, elements, &substeps);  // warm the caches
+    return MedianTickNs(**object, kTicks, kDt, elements, &substeps);
+  };
+  c.explicit_ns = run(sim::Integrator::kSymplecticEuler, p);
+  // The implicit integrator with a tolerance it never reaches, so every substep does exactly
+  // cg_max_iterations iterations: the difference between two counts is the iterations' cost.
+  sim::Parameters q = p;
+  q.cg_tolerance = 1e-14;
+  constexpr int kFew = 1, kMany = 9;
+  q.cg_max_iterations = kFew;
+  const double few = run(sim::Integrator::kImplicitEuler, q);
+  q.cg_max_iterations = kMany;
+  const double many = run(sim::Integrator::kImplicitEuler, q);
+  c.cg_ns = std::max(0.0, (many - few) / (kMany - kFew));
+  c.implicit_ns = std::max(0.1 * few, few - kFew * c.cg_ns);
+  return c;
+}
+
+}  // namespace rheo::daemon

@@ -1,0 +1,47 @@
+// What one tick of a rheological object costs: a model from its size, integrator, substeps and
+// solver settings, counted in element passes and turned into time by coefficients the caller
+// measures on its own machine (the daemon does at start-up, off the loop). Pure: no clock here.
+//
+//   sim::TickCost c = sim::PredictTickCost(object.model(), prepared, integrator, 1e-3, coeffs);
+//   if (c.ns > budget_ns) ...  // refuse the change: it would not fit the tick
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "sim/model.h"
+#include "sim/params.h"
+#include "sim/sim.h"
+
+namespace rheo::sim {
+
+/// Measured cost of the work a tick does, per element (nodes + edges + faces + tetrahedra) [ns].
+struct CostCoefficients {
+  double explicit_ns = 0.0;  // one symplectic Euler substep
+  double implicit_ns = 0.0;  // one implicit substep without its CG iterations (forces, Jacobian)
+  double cg_ns = 0.0;        // one conjugate-gradient iteration of an implicit substep
+};
+
+/// The prediction for one object.
+struct TickCost {
+  int32_t substeps = 0;          // per tick
+  bool substeps_capped = false;  // the explicit bound asked for more than max_substeps
+  int32_t cg_iterations = 0;     // per substep, as estimated (implicit only)
+  int64_t elements = 0;          // nodes + edges + faces + tetrahedra
+  double ns = 0.0;               // predicted time of one awake tick [ns]
+};
+
+/// CG iterations per implicit substep the model counts on: about 8 at the default tolerance of
+/// 5e-3 (the benchmarks measure 1.6-6.4 per tick from 1k to 103k tetrahedra), growing with
+/// log(1/tolerance) as a Jacobi-preconditioned CG does, never above cg_max_iterations.
+int32_t EstimatedCgIterations(const Parameters& params);
+
+/// The cost of one awake tick of `dt` [s] for an object of `model` stepped with `prepared`
+/// (from SimObject::Prepare) and `integrator`.
+TickCost PredictTickCost(const Model& model, const PreparedParameters& prepared,
+                         Integrator integrator, double dt, const CostCoefficients& coefficients);
+
+/// "4936 tetrahedra, implicit, 1 substep, about 8 CG iterations": what a prediction counted.
+std::string DescribeTickCost(const Model& model, const TickCost& cost, Integrator integrator);
+
+}  // namespace rheo::sim

@@ -1,0 +1,239 @@
+// Admission by cost: scene changes and parameter sets that would not fit the 1 ms tick are
+// refused with the prediction and the budget, the loop keeps its rate meanwhile, and an object
+// that keeps needing restores is stopped and reported instead of restored forever.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "rheo/v1/daemon.grpc.pb.h"
+#include "rheo/v1/frames.grpc.pb.h"
+#include "rheo/v1/objects.grpc.pb.h"
+#include "rheo/v1/scene.grpc.pb.h"
+#include "rheod_fixture.h"
+
+namespace rheo::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+// The loop keeps its rate: at least 990 ticks a second, or, on a machine that itself stalls the
+// process (a shared host skips a few percent of periods whatever the daemon does), at least 97 %
+// of the rate measured in the same daemon just before the hostile requests. A starved loop
+// (1 to 300 ticks a second before these limits) fails either way.
+bool KeepsItsRate(double after, double before) {
+  return after >= 990.0 || after >= 0.97 * before;
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Stores the bean sample at `resolution` [m] and returns its object id.
+std::string StoreBean(RheodProcess& d, double resolution) {
+  auto objects = v1::ObjectService::NewStub(d.channel());
+  v1::CreateObjectRequest req;
+  req.set_name("bean");
+  req.mutable_sketch()->set_strokes_json(ReadText(std::string(RHEO_SKETCHES) + "/bean.json"));
+  req.mutable_mesh_options()->set_resolution(resolution);
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, 180s);
+  auto reader = objects->CreateObject(&ctx, req);
+  v1::CreateObjectProgress p;
+  std::string id;
+  while (reader->Read(&p))
+    if (p.has_object()) id = p.object().id();
+  grpc::Status s = reader->Finish();
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  return id;
+}
+
+grpc::Status Add(RheodProcess& d, const std::string& id, v1::Integrator integrator,
+                 std::vector<std::pair<std::string, double>> overrides, v1::SceneObject* out) {
+  auto scene = v1::SceneService::NewStub(d.channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, 60s);
+  v1::AddToSceneRequest add;
+  add.set_object_id(id);
+  add.set_integrator(integrator);
+  for (auto& [name, value] : overrides) {
+    auto* o = add.add_overrides();
+    o->set_name(name);
+    o->set_value(value);
+  }
+  return scene->AddToScene(&ctx, add, out);
+}
+
+grpc::Status Set(RheodProcess& d, uint32_t instance,
+                 std::vector<std::pair<std::string, double>> values) {
+  auto scene = v1::SceneService::NewStub(d.channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::SetParametersRequest req;
+  req.set_instance_id(instance);
+  for (auto& [name, value] : values) {
+    auto* p = req.add_parameters();
+    p->set_name(name);
+    p->set_value(value);
+  }
+  v1::SetParametersResponse r;
+  return scene->SetParameters(&ctx, req, &r);
+}
+
+v1::DaemonStatus Status(RheodProcess& d) {
+  auto stub = v1::DaemonService::NewStub(d.channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::DaemonStatus st;
+  EXPECT_TRUE(stub->GetStatus(&ctx, {}, &st).ok());
+  return st;
+}
+
+// Ticks per second of the daemon's loop over `window`, from its own tick count and uptime; the
+// loop's late, overrun and skipped ticks in the window go to `detail` for the failure message.
+double TickRate(RheodProcess& d, std::chrono::milliseconds window, std::string* detail) {
+  const v1::DaemonStatus a = Status(d);
+  std::this_thread::sleep_for(window);
+  const v1::DaemonStatus b = Status(d);
+  *detail = "ticks " + std::to_string(b.loop().ticks() - a.loop().ticks()) + " in " +
+            std::to_string(b.uptime_s() - a.uptime_s()) + " s, late " +
+            std::to_string(b.loop().late_ticks() - a.loop().late_ticks()) + ", overruns " +
+            std::to_string(b.loop().overruns() - a.loop().overruns()) + ", skipped " +
+            std::to_string(b.loop().skipped_ticks() - a.loop().skipped_ticks());
+  return static_cast<double>(b.loop().ticks() - a.loop().ticks()) / (b.uptime_s() - a.uptime_s());
+}
+
+TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopKeepsItsRate) {
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  // The bean at the daemon's default resolution: symplectic Euler (soft jelly's own) would need
+  // about 44 substeps a tick; left to the daemon, the implicit integrator is chosen.
+  const std::string id = StoreBean(d, 0.0);
+  ASSERT_FALSE(id.empty());
+  v1::SceneObject so;
+  grpc::Status s = Add(d, id, v1::INTEGRATOR_UNSPECIFIED, {}, &so);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  EXPECT_EQ(so.integrator(), v1::INTEGRATOR_IMPLICIT);
+  EXPECT_GT(so.predicted_tick_us(), 0.0);
+  EXPECT_LT(so.predicted_tick_us(), Status(d).loop().sim_budget_us());
+
+  std::string detail;
+  const double before = TickRate(d, 3s, &detail);
+
+  // Asked for explicitly, the symplectic one does not fit: refused, naming time and budget.
+  v1::SceneObject refused;
+  s = Add(d, id, v1::INTEGRATOR_SYMPLECTIC_EULER, {}, &refused);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
+  EXPECT_NE(s.error_message().find("ms of simulation in each 1 ms tick"), std::string::npos)
+      << s.error_message();
+  EXPECT_NE(s.error_message().find("--sim-budget"), std::string::npos) << s.error_message();
+
+  // The settings that took the loop to 1 tick a second: each outside the loop's ranges.
+  for (auto [name, value] : std::vector<std::pair<std::string, double>>{
+           {"implicit_substeps", 1000}, {"cg_max_iterations", 10000}, {"cg_tolerance", 1e-14}}) {
+    s = Set(d, so.instance_id(), {{name, value}});
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << name;
+    EXPECT_NE(s.error_message().find("range the 1 kHz loop takes"), std::string::npos)
+        << s.error_message();
+  }
+  // Inside every range, together still too much: refused by cost.
+  s = Set(d, so.instance_id(),
+          {{"implicit_substeps", 16}, {"cg_max_iterations", 200}, {"cg_tolerance", 1e-10}});
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
+  EXPECT_NE(s.error_message().find("16 substeps"), std::string::npos) << s.error_message();
+
+  // A finer mesh of the same bean: refused by cost, with the other object counted.
+  const std::string fine = StoreBean(d, 0.004);
+  ASSERT_FALSE(fine.empty());
+  s = Add(d, fine, v1::INTEGRATOR_IMPLICIT, {}, &refused);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
+  EXPECT_NE(s.error_message().find("the rest of the scene takes"), std::string::npos)
+      << s.error_message();
+
+  // Nothing changed: one object, at its old settings, and the loop at rate.
+  auto scene = v1::SceneService::NewStub(d.channel());
+  grpc::ClientContext gctx;
+  SetDeadline(gctx);
+  v1::Scene sc;
+  ASSERT_TRUE(scene->GetScene(&gctx, {}, &sc).ok());
+  ASSERT_EQ(sc.objects_size(), 1);
+  for (const auto& p : sc.objects(0).parameters())
+    if (p.name() == "implicit_substeps") {
+      EXPECT_EQ(p.value(), 1.0);
+    }
+  const std::string before_detail = detail;
+  const double after = TickRate(d, 3s, &detail);
+  EXPECT_TRUE(KeepsItsRate(after, before))
+      << "before: " << before << " ticks/s (" << before_detail << "); after: " << after
+      << " ticks/s (" << detail << ")";
+  EXPECT_EQ(Status(d).loop().predicted_sim_us(), so.predicted_tick_us());
+}
+
+TEST(RheodAdmission, AnObjectThatKeepsExplodingIsStoppedAndReportedNotRestoredForever) {
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  const std::string id = StoreBean(d, 0.012);
+  ASSERT_FALSE(id.empty());
+  // Symplectic Euler held to one substep a tick, far below what the springs need: cheap, so
+  // admitted, but its state blows up again and again.
+  v1::SceneObject so;
+  grpc::Status s =
+      Add(d, id, v1::INTEGRATOR_SYMPLECTIC_EULER, {{"k_v", 1e5}, {"max_substeps", 1}}, &so);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  std::string before_detail;
+  const double before = TickRate(d, 1s, &before_detail);  // while it explodes
+  auto frames = v1::FrameService::NewStub(d.channel());
+  grpc::ClientContext fctx;
+  SetDeadline(fctx, 20s);
+  v1::WatchFramesRequest w;
+  w.set_rate_hz(20);
+  auto reader = frames->WatchFrames(&fctx, w);
+  v1::Frame f;
+  bool stopped = false;
+  while (reader->Read(&f))
+    if (f.objects_size() == 1 && f.objects(0).unstable()) {
+      stopped = true;
+      break;
+    }
+  ASSERT_TRUE(stopped) << "never stopped; restores " << f.objects(0).restores();
+  const uint64_t restores = f.objects(0).restores();
+  EXPECT_GE(restores, 5u);
+  fctx.TryCancel();
+  while (reader->Read(&f)) {
+  }
+  (void)reader->Finish();
+  EXPECT_TRUE(d.WaitForLog("stopped: its state was restored 5 times", 5s)) << d.log();
+  // Stopped means not stepped: no more restores, and reported in status and scene.
+  std::this_thread::sleep_for(500ms);
+  v1::DaemonStatus st = Status(d);
+  EXPECT_EQ(st.loop().unstable_objects(), 1u);
+  EXPECT_EQ(st.loop().restores(), restores);
+  std::string detail;
+  const double after = TickRate(d, 3s, &detail);
+  EXPECT_TRUE(KeepsItsRate(after, before))
+      << "before: " << before << " ticks/s (" << before_detail << "); after: " << after
+      << " ticks/s (" << detail << ")";
+  {
+    auto scene = v1::SceneService::NewStub(d.channel());
+    grpc::ClientContext gctx;
+    SetDeadline(gctx);
+    v1::Scene sc;
+    ASSERT_TRUE(scene->GetScene(&gctx, {}, &sc).ok());
+    ASSERT_EQ(sc.objects_size(), 1);
+    EXPECT_TRUE(sc.objects(0).unstable());
+  }
+  // Sane parameters give it a new chance: it runs again, without restores.
+  s = Set(d, so.instance_id(), {{"k_v", 100}, {"max_substeps", 64}});
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  std::this_thread::sleep_for(1s);
+  st = Status(d);
+  EXPECT_EQ(st.loop().unstable_objects(), 0u);
+  EXPECT_LE(st.loop().restores(), restores + 1);
+}
+
+}  // namespace
+}  // namespace rheo::testing
