@@ -22,6 +22,7 @@
 #include <mutex>
 #include <thread>
 
+#include "daemon/api/decode_errors.h"
 #include "daemon/api/services.h"
 #include "daemon/loop/engine.h"
 #include "daemon/loop/frame_hub.h"
@@ -334,6 +335,12 @@ int main(int argc, char** argv) {
   builder.RegisterService(&scene_service);
   builder.RegisterService(&object_service);
   builder.RegisterService(&device_service);
+  {
+    // Undecodable requests: INVALID_ARGUMENT naming the expected message, not an empty INTERNAL.
+    std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> chain;
+    chain.push_back(std::make_unique<DecodeErrorInterceptorFactory>());
+    builder.experimental().SetInterceptorCreators(std::move(chain));
+  }
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || port == 0) {
     spdlog::error(
