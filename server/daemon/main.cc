@@ -72,6 +72,7 @@ struct Flags {
   int job_timeout_s = 120;
   int64_t max_tets = 500000;
   double sim_budget_percent = 60.0;
+  int64_t store_quota_mb = 4096;
 };
 
 // Holds an exclusive lock on the data directory so two daemons never share one store.
@@ -187,6 +188,10 @@ int main(int argc, char** argv) {
   app.add_option("--max-tets", flags.max_tets, "largest tetrahedral mesh an object may have")
       ->check(CLI::Range(int64_t{1000}, int64_t{10000000}))
       ->capture_default_str();
+  app.add_option("--store-quota", flags.store_quota_mb,
+                 "most the stored objects may take in all [MB]; creating one past it is refused")
+      ->check(CLI::Range(int64_t{1}, int64_t{1} << 24))
+      ->capture_default_str();
   app.add_option("--sim-budget", flags.sim_budget_percent,
                  "share of each tick the scene's simulation may take [%]; a scene change or "
                  "parameter set predicted to need more is refused")
@@ -217,13 +222,15 @@ int main(int argc, char** argv) {
 
   using namespace rheo::daemon;
   const std::string db_path = (std::filesystem::path(flags.data_dir) / "objects.db").string();
-  auto store = Store::Open(db_path);
+  auto store = Store::Open(db_path, static_cast<uint64_t>(flags.store_quota_mb) << 20);
   if (!store.ok()) {
     spdlog::error("{}", store.error().message);
     return 1;
   }
   auto stored = (*store)->Count();
-  spdlog::info("object store {} holds {} objects", db_path, stored.ok() ? *stored : 0);
+  spdlog::info("object store {} holds {} objects, {:.1f} of {} MB", db_path,
+               stored.ok() ? *stored : 0, static_cast<double>((*store)->used_bytes()) / 1e6,
+               flags.store_quota_mb);
   const int workers = flags.workers > 0
                           ? flags.workers
                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()) - 1);

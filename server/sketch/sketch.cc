@@ -574,6 +574,15 @@ void WarnIgnored(const Components& parts, const std::vector<int>& order, int use
 
 // decode, binarize, components (and their kinds), then per candidate thin, spurs (extra-line
 // removal) and trace, the largest kept (select), then vectorize: each stage's time in r.timings.
+Result<std::pair<int, int>> DecodePictureSize(std::span<const uint8_t> bytes,
+                                              const ContourOptions& o) {
+  if (Status s = CheckOptions(o); !s) return s.error();
+  ContourResult r;
+  Result<internal::GrayImage> img = Decode(bytes, o, r);
+  if (!img.ok()) return img.error();
+  return std::pair<int, int>(r.width, r.height);
+}
+
 Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const ContourOptions& o) {
   if (Status s = CheckOptions(o); !s) return s.error();
   ContourResult r;

@@ -5,6 +5,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "common/geometry.h"
@@ -86,6 +87,12 @@ Result<ContourResult> ContourFromStrokesJson(std::string_view json, const Contou
 /// its edge. Errors as for strokes; kResourceExhausted over max_pixels or max_input_bytes.
 Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes,
                                        const ContourOptions& options);
+
+/// Decodes a PNG or JPEG picture in full within `options`' limits (max_input_bytes, max_pixels)
+/// and returns its width and height [px]: e.g. a background photo that sketch pads must be able
+/// to show. kInvalidArgument for anything else or a broken file, kResourceExhausted over a limit.
+Result<std::pair<int, int>> DecodePictureSize(std::span<const uint8_t> bytes,
+                                              const ContourOptions& options);
 
 /// Detects stroke JSON, PNG or JPEG by content and calls the matching function above.
 Result<ContourResult> ContourFromSketchBytes(std::span<const uint8_t> bytes,

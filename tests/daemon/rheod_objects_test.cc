@@ -386,5 +386,124 @@ TEST(RheodScene, ObjectFallsAndStreamsTopologyOnceThenPositions) {
   EXPECT_EQ(sc.objects_size(), 0);
 }
 
+TEST(RheodObjects, TheBackgroundPhotoMustBeAPictureSketchPadsCanOpen) {
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  auto stub = v1::ObjectService::NewStub(d.channel());
+  v1::CreateObjectRequest req = BeanRequest();
+  req.mutable_mesh_options()->set_resolution(0.012);
+  std::string noise(3u << 20, '\0');
+  for (size_t i = 0; i < noise.size(); ++i) noise[i] = static_cast<char>((i * 2654435761u) >> 13);
+  req.mutable_sketch()->set_background_image(noise);
+  Created bad = Create(*stub, req);
+  EXPECT_EQ(bad.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT)
+      << bad.status.error_message();
+  EXPECT_NE(bad.status.error_message().find("background_image"), std::string::npos)
+      << bad.status.error_message();
+  // A broken PNG: the right signature, then garbage.
+  std::string png = ReadText(SketchPath("bean.photo.png"));
+  req.mutable_sketch()->set_background_image(png.substr(0, png.size() / 2));
+  Created cut = Create(*stub, req);
+  EXPECT_EQ(cut.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT)
+      << cut.status.error_message();
+  req.mutable_sketch()->set_background_image(png);
+  Created good = Create(*stub, req);
+  ASSERT_TRUE(good.status.ok()) << good.status.error_message();
+  EXPECT_TRUE(good.object.has_background_image());
+  // Nothing of the refused ones was stored.
+  grpc::ClientContext lctx;
+  SetDeadline(lctx);
+  v1::ListObjectsResponse list;
+  ASSERT_TRUE(stub->ListObjects(&lctx, {}, &list).ok());
+  EXPECT_EQ(list.objects_size(), 1);
+}
+
+TEST(RheodObjects, TheStoreQuotaRefusesClearlyAndKeepsWhatIsStored) {
+  RheodProcess d({"--store-quota", "1"});  // 1 MB: a few objects with a 150 kB photo each
+  ASSERT_TRUE(d.started()) << d.log();
+  auto stub = v1::ObjectService::NewStub(d.channel());
+  v1::CreateObjectRequest req = BeanRequest();
+  req.mutable_mesh_options()->set_resolution(0.012);
+  req.mutable_sketch()->set_background_image(ReadText(SketchPath("bean.photo.png")));
+  std::vector<std::string> stored;
+  Created c;
+  for (int i = 0; i < 20; ++i) {
+    c = Create(*stub, req);
+    if (!c.status.ok()) break;
+    stored.push_back(c.object.id());
+  }
+  ASSERT_EQ(c.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED)
+      << c.status.error_message();
+  EXPECT_NE(c.status.error_message().find("quota"), std::string::npos) << c.status.error_message();
+  EXPECT_GE(stored.size(), 2u);
+  EXPECT_LE(stored.size(), 7u);
+  for (const std::string& id : stored) {
+    grpc::ClientContext gctx;
+    SetDeadline(gctx);
+    v1::GetObjectRequest g;
+    g.set_id(id);
+    v1::Object o;
+    EXPECT_TRUE(stub->GetObject(&gctx, g, &o).ok()) << id;
+  }
+  // Deleting one makes room for one more.
+  {
+    grpc::ClientContext dctx;
+    SetDeadline(dctx);
+    v1::DeleteObjectRequest del;
+    del.set_id(stored.front());
+    v1::DeleteObjectResponse r;
+    ASSERT_TRUE(stub->DeleteObject(&dctx, del, &r).ok());
+  }
+  EXPECT_TRUE(Create(*stub, req).status.ok());
+}
+
+TEST(RheodObjects, ARetryWithTheSameRequestIdGetsTheObjectAlreadyStored) {
+  RheodProcess d;
+  ASSERT_TRUE(d.started()) << d.log();
+  auto stub = v1::ObjectService::NewStub(d.channel());
+  v1::CreateObjectRequest req = BeanRequest();
+  req.mutable_mesh_options()->set_resolution(0.012);
+  req.set_request_id("pad-3-attempt-a");
+  req.set_add_to_scene(true);
+  Created first = Create(*stub, req);
+  ASSERT_TRUE(first.status.ok()) << first.status.error_message();
+  EXPECT_FALSE(first.progress.back().replayed());
+  // The retry (its client never saw the answer): the same object and scene instance, built once.
+  Created again = Create(*stub, req);
+  ASSERT_TRUE(again.status.ok()) << again.status.error_message();
+  ASSERT_FALSE(again.progress.empty());
+  EXPECT_TRUE(again.progress.back().replayed());
+  EXPECT_EQ(again.object.id(), first.object.id());
+  EXPECT_EQ(again.progress.back().scene_object().instance_id(),
+            first.progress.back().scene_object().instance_id());
+  // A cut connection: the client goes away after the store stage began; the retry finds what
+  // that attempt stored, or builds it if the cut came first. Either way one object, not two.
+  req.set_request_id("pad-3-attempt-b");
+  req.set_add_to_scene(false);
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx, 120s);
+    auto reader = stub->CreateObject(&ctx, req);
+    v1::CreateObjectProgress p;
+    while (reader->Read(&p))
+      if (p.stage() == "store") {
+        ctx.TryCancel();
+        break;
+      }
+    (void)reader->Finish();
+  }
+  Created retry = Create(*stub, req);
+  ASSERT_TRUE(retry.status.ok()) << retry.status.error_message();
+  grpc::ClientContext lctx;
+  SetDeadline(lctx);
+  v1::ListObjectsResponse list;
+  ASSERT_TRUE(stub->ListObjects(&lctx, {}, &list).ok());
+  EXPECT_EQ(list.objects_size(), 2) << "an orphan was stored";
+  // A request id over 128 bytes is refused, quoting only its start.
+  req.set_request_id(std::string(200, 'r'));
+  Created longer = Create(*stub, req);
+  EXPECT_EQ(longer.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+}
+
 }  // namespace
 }  // namespace rheo::testing

@@ -189,8 +189,7 @@ double TickRate(RheodProcess& d, std::chrono::milliseconds window) {
 class RheodTable : public ::testing::TestWithParam<const char*> {};
 
 // With each kind of device: the device methods take other paths with each.
-INSTANTIATE_TEST_SUITE_P(Devices, RheodTable,
-                         ::testing::Values("sim-spidar-g", "network", "none"));
+INSTANTIATE_TEST_SUITE_P(Devices, RheodTable, ::testing::Values("sim-spidar-g", "network", "none"));
 
 TEST_P(RheodTable, EveryMethodEveryFieldAtItsWorstGetsAClearShortAnswer) {
   RheodProcess d({"--device", GetParam(), "--watchdog-timeout", "100"});

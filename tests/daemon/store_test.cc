@@ -1,6 +1,7 @@
 #include "daemon/store/store.h"
 
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include <filesystem>
 #include <set>
@@ -105,6 +106,81 @@ TEST(StoreIds, AreUnique) {
   std::set<std::string> ids;
   for (int i = 0; i < 1000; ++i) ids.insert(Store::NewId());
   EXPECT_EQ(ids.size(), 1000u);
+}
+
+TEST_F(StoreTest, RequestIdsFindTheirObjectAndAreUnique) {
+  auto s = Store::Open(path_);
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  StoredObject a = Sample("a", 1);
+  a.request_id = "client-7f3a";
+  ASSERT_TRUE((*s)->Put(a).ok());
+  ASSERT_TRUE((*s)->Put(Sample("b", 2)).ok());  // no request id: many may have none
+  ASSERT_TRUE((*s)->Put(Sample("c", 3)).ok());
+  auto found = (*s)->FindByRequestId("client-7f3a");
+  ASSERT_TRUE(found.ok()) << found.error().message;
+  EXPECT_EQ(found->id, "a");
+  EXPECT_EQ((*s)->FindByRequestId("other").error().code, ErrorCode::kNotFound);
+  StoredObject d = Sample("d", 4);
+  d.request_id = "client-7f3a";
+  Status dup = (*s)->Put(d);
+  EXPECT_EQ(dup.error().code, ErrorCode::kAlreadyExists) << dup.error().message;
+  EXPECT_EQ(*(*s)->Count(), 3u);
+}
+
+TEST_F(StoreTest, QuotaRefusesWhatWouldNotFitAndKeepsWhatIsStored) {
+  const uint64_t one = [&] {
+    auto s = Store::Open(dir_ + "/measure.db");
+    EXPECT_TRUE(s.ok());
+    EXPECT_TRUE((*s)->Put(Sample("x", 1)).ok());
+    return (*s)->used_bytes();
+  }();
+  ASSERT_GT(one, 1000u);  // the 1000-byte background and the rest
+  auto s = Store::Open(path_, 2 * one + one / 2);
+  ASSERT_TRUE(s.ok());
+  ASSERT_TRUE((*s)->Put(Sample("a", 1)).ok());
+  ASSERT_TRUE((*s)->Put(Sample("b", 2)).ok());
+  Status full = (*s)->Put(Sample("c", 3));
+  ASSERT_EQ(full.error().code, ErrorCode::kResourceExhausted);
+  EXPECT_NE(full.error().message.find("quota"), std::string::npos) << full.error().message;
+  EXPECT_NE(full.error().message.find("--store-quota"), std::string::npos);
+  EXPECT_EQ(*(*s)->Count(), 2u);
+  EXPECT_TRUE((*s)->Get("a").ok());
+  // Replacing an object under its own id counts its old bytes back; deleting frees them.
+  EXPECT_TRUE((*s)->Put(Sample("b", 2)).ok());
+  ASSERT_TRUE((*s)->Delete("a").ok());
+  EXPECT_EQ((*s)->used_bytes(), one);
+  EXPECT_TRUE((*s)->Put(Sample("c", 3)).ok());
+  // The count survives a reopen (it is summed from the rows).
+  s->reset();
+  auto again = Store::Open(path_, 2 * one + one / 2);
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ((*again)->used_bytes(), 2 * one);
+}
+
+TEST_F(StoreTest, AVersionOneStoreIsUpgradedInPlaceKeepingItsObjects) {
+  {
+    // The version 1 schema, as earlier rheod releases wrote it, with one object.
+    auto s = Store::Open(path_);
+    ASSERT_TRUE(s.ok());
+    ASSERT_TRUE((*s)->Put(Sample("old", 1)).ok());
+  }
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(path_.c_str(), &db), SQLITE_OK);
+    for (const char* sql :
+         {"DROP INDEX objects_request", "ALTER TABLE objects DROP COLUMN request_id",
+          "UPDATE schema_version SET version = 1"})
+      ASSERT_EQ(sqlite3_exec(db, sql, nullptr, nullptr, nullptr), SQLITE_OK)
+          << sql << ": " << sqlite3_errmsg(db);
+    sqlite3_close(db);
+  }
+  auto s = Store::Open(path_);
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  EXPECT_TRUE((*s)->Get("old").ok());
+  StoredObject n = Sample("new", 2);
+  n.request_id = "r1";
+  ASSERT_TRUE((*s)->Put(n).ok());
+  EXPECT_EQ((*s)->FindByRequestId("r1")->id, "new");
 }
 
 }  // namespace

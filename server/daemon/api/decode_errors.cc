@@ -30,11 +30,11 @@ class DecodeErrorInterceptor final : public grpc::experimental::Interceptor {
       if (s.error_code() == grpc::StatusCode::INTERNAL &&
           (s.error_message().empty() || s.error_message() == "No payload")) {
         const std::string type = InputTypeOf(method_);
-        methods->ModifySendStatus(grpc::Status(
-            grpc::StatusCode::INVALID_ARGUMENT,
-            "the request to " + method_ + " could not be decoded" +
-                (type.empty() ? std::string() : " as a " + type) +
-                "; send that protobuf message, as proto/rheo/v1 defines it"));
+        methods->ModifySendStatus(
+            grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                         "the request to " + method_ + " could not be decoded" +
+                             (type.empty() ? std::string() : " as a " + type) +
+                             "; send that protobuf message, as proto/rheo/v1 defines it"));
       }
     }
     methods->Proceed();

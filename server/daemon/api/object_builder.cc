@@ -98,12 +98,28 @@ Result<v1::ContourReport> ExtractContour(const v1::Sketch& sketch,
   return out;
 }
 
+Status CheckBackgroundImage(const std::string& bytes) {
+  if (bytes.empty()) return Status::Ok();
+  // Decoded in full, with a sketch picture's limits: what sketch pads will show must be a
+  // picture they can open, not any bytes.
+  auto size = sketch::DecodePictureSize(
+      std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
+      sketch::ContourOptions{});
+  if (!size.ok())
+    return Error{size.error().code, "background_image (" + std::to_string(bytes.size()) +
+                                        " bytes): " + size.error().message +
+                                        "; upload the photo as PNG or JPEG"};
+  return Status::Ok();
+}
+
 Result<StoredObject> BuildObject(const v1::CreateObjectRequest& request, const BuildLimits& limits,
                                  const BuildProgress& progress) {
   v1::CreateObjectProgress p;
   p.set_stage("contour");
   p.set_fraction(0.0);
   if (auto stop = progress(p)) return *stop;
+  if (Status s = CheckBackgroundImage(request.sketch().background_image()); !s.ok())
+    return s.error();
 
   auto contour = RunSketch(request.sketch(), request.contour_options());
   if (!contour.ok()) return contour.error();

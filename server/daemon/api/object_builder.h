@@ -23,6 +23,10 @@ using BuildProgress = std::function<std::optional<Error>(const rheo::v1::CreateO
 /// Checks a request before any work is queued: INVALID_ARGUMENT names the field and its range.
 Status ValidateCreateRequest(const rheo::v1::CreateObjectRequest& request);
 
+/// A background photo must decode as PNG or JPEG within a sketch picture's limits
+/// (INVALID_ARGUMENT or RESOURCE_EXHAUSTED naming background_image); empty is fine.
+Status CheckBackgroundImage(const std::string& bytes);
+
 /// Runs the whole build; the result is ready to store (id and creation time set).
 Result<StoredObject> BuildObject(const rheo::v1::CreateObjectRequest& request,
                                  const BuildLimits& limits, const BuildProgress& progress);

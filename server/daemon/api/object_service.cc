@@ -1,7 +1,9 @@
 // ObjectService: sketches become stored solids on the worker pool, with progress and cancel.
 #include <algorithm>
+#include <thread>
 
 #include "common/tet_mesh_io.h"
+#include "daemon/api/convert.h"
 #include "daemon/api/grpc_status.h"
 #include "daemon/api/limits.h"
 #include "daemon/api/object_builder.h"
@@ -43,6 +45,37 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
   if (Status s = ValidateCreateRequest(*request); !s.ok()) return ToGrpc(s.error());
   if (ctx_.shutting_down->load())
     return grpc::Status(grpc::StatusCode::UNAVAILABLE, "shutting down");
+  // A request id makes a retry safe: one build per id at a time, and an id whose object is
+  // stored answers with it.
+  const std::string& request_id = request->request_id();
+  struct InFlight {
+    ObjectServiceImpl* self;
+    std::string id;
+    ~InFlight() {
+      if (id.empty()) return;
+      std::lock_guard<std::mutex> lock(self->requests_mutex_);
+      self->requests_in_flight_.erase(id);
+    }
+  } in_flight{this, ""};
+  if (!request_id.empty()) {
+    const auto give_up = SteadyDeadline(*context, ctx_.job_timeout);
+    for (;;) {
+      {
+        std::lock_guard<std::mutex> lock(requests_mutex_);
+        if (requests_in_flight_.insert(request_id).second) break;
+      }
+      // The first attempt is still building (its client may have been cut off): wait for it.
+      if (context->IsCancelled() || std::chrono::steady_clock::now() > give_up)
+        return grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED,
+                            "a CreateObject with request_id " + QuoteForMessage(request_id) +
+                                " is still building; retry later with the same id");
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    in_flight.id = request_id;
+    auto earlier = ctx_.store->FindByRequestId(request_id);
+    if (earlier.ok()) return Replay(*earlier, *request, writer);
+    if (earlier.error().code != ErrorCode::kNotFound) return ToGrpc(earlier.error());
+  }
   Store* store = ctx_.store;
   const BuildLimits limits = ctx_.build_limits;
   auto job = ctx_.jobs->Submit(
@@ -64,6 +97,7 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
           job.Push(JobEvent::Failed(*stop));
           return;
         }
+        built->request_id = request.request_id();
         if (Status s = store->Put(*built); !s.ok()) {
           job.Push(JobEvent::Failed(s.error()));
           return;
@@ -121,6 +155,37 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
   }
   if (!sent_object)
     return grpc::Status(grpc::StatusCode::INTERNAL, job_id + " ended without a result");
+  return grpc::Status::OK;
+}
+
+grpc::Status ObjectServiceImpl::Replay(const StoredObject& stored,
+                                       const v1::CreateObjectRequest& request,
+                                       grpc::ServerWriter<v1::CreateObjectProgress>* writer) {
+  v1::CreateObjectProgress done;
+  done.set_stage("done");
+  done.set_fraction(1.0);
+  done.set_replayed(true);
+  if (grpc::Status s = ObjectFromMeta(stored, done.mutable_object()); !s.ok()) return s;
+  if (request.add_to_scene()) {
+    // In the scene already (the first attempt got that far): that instance; else add it now.
+    bool found = false;
+    for (const auto& e : ctx_.scene->All())
+      if (e->object_id == stored.id) {
+        FillSceneObject(*e, false, false, done.mutable_scene_object());
+        found = true;
+        break;
+      }
+    if (!found) {
+      v1::AddToSceneRequest add;
+      add.set_object_id(stored.id);
+      if (grpc::Status s = AddObjectToScene(ctx_, add, nullptr, done.mutable_scene_object());
+          !s.ok())
+        return grpc::Status(
+            s.error_code(),
+            "object " + stored.id + " was stored but not added to the scene: " + s.error_message());
+    }
+  }
+  writer->Write(done);
   return grpc::Status::OK;
 }
 

@@ -3,6 +3,8 @@
 
 #include <atomic>
 #include <chrono>
+#include <mutex>
+#include <set>
 #include <string>
 
 #include "daemon/api/lease.h"
@@ -128,7 +130,13 @@ class ObjectServiceImpl final : public v1::ObjectService::Service {
                             grpc::ServerWriter<v1::ExportChunk>*) override;
 
  private:
+  // A retry of a CreateObject whose first attempt stored its object (request_id): the answer.
+  grpc::Status Replay(const StoredObject& stored, const v1::CreateObjectRequest& request,
+                      grpc::ServerWriter<v1::CreateObjectProgress>* writer);
+
   const DaemonContext& ctx_;
+  std::mutex requests_mutex_;
+  std::set<std::string> requests_in_flight_;  // CreateObject request ids being built
 };
 
 class DeviceServiceImpl final : public v1::DeviceService::Service {

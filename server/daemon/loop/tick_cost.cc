@@ -9,9 +9,11 @@
 namespace rheo::daemon {
 namespace {
 
-// Median time of one tick per (substep x element) [ns], over `ticks` ticks.
-double MedianTickNs(sim::SimObject& object, int ticks, double dt, int64_t elements,
-                    int32_t* substeps_out) {
+// Shortest time of one tick per (substep x element) [ns], over `ticks` ticks. The shortest, not
+// the median: another process on the core only ever adds time, and the loop that the figure is
+// for runs at real-time priority, ahead of such neighbours, while this runs without it.
+double FastestTickNs(sim::SimObject& object, int ticks, double dt, int64_t elements,
+                     int32_t* substeps_out) {
   std::vector<double> per;
   per.reserve(static_cast<size_t>(ticks));
   for (int i = 0; i < ticks; ++i) {
@@ -22,8 +24,7 @@ double MedianTickNs(sim::SimObject& object, int ticks, double dt, int64_t elemen
     *substeps_out = std::max(r.substeps, 1);
     per.push_back(ns / (static_cast<double>(*substeps_out) * static_cast<double>(elements)));
   }
-  std::nth_element(per.begin(), per.begin() + per.size() / 2, per.end());
-  return per[per.size() / 2];
+  return *std::min_element(per.begin(), per.end());
 }
 
 }  // namespace
@@ -46,8 +47,8 @@ sim::CostCoefficients MeasureTickCost() {
                              static_cast<int64_t>(m.faces.size()) +
                              static_cast<int64_t>(m.tets.size());
     int32_t substeps = 1;
-    (void)MedianTickNs(**object, 5, kDt, elements, &substeps);  // warm the caches
-    return MedianTickNs(**object, kTicks, kDt, elements, &substeps);
+    (void)FastestTickNs(**object, 5, kDt, elements, &substeps);  // warm the caches
+    return FastestTickNs(**object, kTicks, kDt, elements, &substeps);
   };
   c.explicit_ns = run(sim::Integrator::kSymplecticEuler, p);
   // The implicit integrator with a tolerance it never reaches, so every substep does exactly

@@ -8,7 +8,7 @@ namespace rheo::daemon {
 
 /// Steps a generated block of about 1,000 tetrahedra off the loop (symplectic Euler, then the
 /// implicit integrator at two fixed CG iteration counts) and returns the time per element of a
-/// substep and of a CG iteration: the median tick of each, about 40 ms in all.
+/// substep and of a CG iteration: the fastest of 40 ticks of each, about 40 ms in all.
 sim::CostCoefficients MeasureTickCost();
 
 }  // namespace rheo::daemon

@@ -2,6 +2,8 @@
 
 #include <sqlite3.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <random>
 
@@ -39,9 +41,24 @@ class Stmt {
   int rc_;
 };
 
+constexpr int64_t kSchemaVersion = 2;
+// What the quota counts of one row, and of all of them.
+#define RHEO_ROW_BYTES                                                               \
+  "(length(meta) + length(sketch) + ifnull(length(background), 0) + length(mesh) + " \
+  "ifnull(length(triangulation_svg), 0))"
+constexpr const char* kSizeSum = "SELECT ifnull(sum" RHEO_ROW_BYTES ", 0) FROM objects";
+constexpr const char* kRowSize = "SELECT " RHEO_ROW_BYTES " FROM objects WHERE id = ?";
+#undef RHEO_ROW_BYTES
+
+std::string Megabytes(uint64_t bytes) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1f MB", static_cast<double>(bytes) / 1e6);
+  return b;
+}
+
 }  // namespace
 
-Result<std::unique_ptr<Store>> Store::Open(const std::string& path) {
+Result<std::unique_ptr<Store>> Store::Open(const std::string& path, uint64_t quota_bytes) {
   sqlite3* db = nullptr;
   int rc =
       sqlite3_open_v2(path.c_str(), &db,
@@ -61,23 +78,43 @@ Result<std::unique_ptr<Store>> Store::Open(const std::string& path) {
            "CREATE TABLE IF NOT EXISTS objects ("
            " id TEXT PRIMARY KEY, name TEXT NOT NULL, created_ms INTEGER NOT NULL,"
            " meta BLOB NOT NULL, sketch BLOB NOT NULL, sketch_kind TEXT NOT NULL,"
-           " background BLOB, mesh BLOB NOT NULL, triangulation_svg TEXT)",
+           " background BLOB, mesh BLOB NOT NULL, triangulation_svg TEXT, request_id TEXT)",
            "CREATE INDEX IF NOT EXISTS objects_created ON objects (created_ms DESC, id)",
        }) {
     if (Status s = store->Exec(sql); !s.ok()) return s.error();
   }
+  // Version 2 added the client's request id (CreateObject retries find what they stored).
+  int64_t version = 0;
   {
     Stmt q(db, "SELECT version FROM schema_version");
     if (!q.ok()) return Internal("object store: " + q.Error());
-    if (sqlite3_step(q.get()) == SQLITE_ROW) {
-      int64_t v = sqlite3_column_int64(q.get(), 0);
-      if (v != 1)
-        return Error{ErrorCode::kFailedPrecondition,
-                     "object store " + path + " has schema version " + std::to_string(v) +
-                         "; this rheod reads version 1"};
-    } else if (Status s = store->Exec("INSERT INTO schema_version VALUES (1)"); !s.ok()) {
+    if (sqlite3_step(q.get()) == SQLITE_ROW) version = sqlite3_column_int64(q.get(), 0);
+  }
+  if (version > kSchemaVersion)
+    return Error{ErrorCode::kFailedPrecondition,
+                 "object store " + path + " has schema version " + std::to_string(version) +
+                     "; this rheod reads versions 1 to " + std::to_string(kSchemaVersion)};
+  if (version < kSchemaVersion) {
+    // One transaction: a store is either still version 1 or wholly version 2.
+    const std::string upgrade =
+        std::string("BEGIN IMMEDIATE;") +
+        (version == 1 ? "ALTER TABLE objects ADD COLUMN request_id TEXT;" : "") +
+        (version == 0 ? "INSERT INTO schema_version VALUES (2);"
+                      : "UPDATE schema_version SET version = 2;") +
+        "CREATE UNIQUE INDEX IF NOT EXISTS objects_request ON objects (request_id)"
+        " WHERE request_id IS NOT NULL;"
+        "COMMIT;";
+    if (Status s = store->Exec(upgrade.c_str()); !s.ok()) {
+      (void)store->Exec("ROLLBACK");
       return s.error();
     }
+  }
+  store->quota_bytes_ = quota_bytes;
+  {
+    Stmt q(db, kSizeSum);
+    if (!q.ok() || sqlite3_step(q.get()) != SQLITE_ROW)
+      return Internal("object store: " + q.Error());
+    store->used_bytes_ = static_cast<uint64_t>(sqlite3_column_int64(q.get(), 0));
   }
   return store;
 }
@@ -97,10 +134,33 @@ Status Store::Exec(const char* sql) {
 }
 
 Status Store::Put(const StoredObject& o) {
+  const std::string mesh = EncodeMeshBlob(o.mesh);
+  const uint64_t bytes = o.meta.size() + o.sketch.size() + o.background.size() + mesh.size() +
+                         o.triangulation_svg.size();
   std::lock_guard<std::mutex> lock(mutex_);
+  // An object replaced under its own id gives its old bytes back.
+  uint64_t replaced = 0;
+  {
+    Stmt q(db_, kRowSize);
+    if (!q.ok()) return Internal("object store: " + q.Error());
+    q.Text(1, o.id);
+    if (sqlite3_step(q.get()) == SQLITE_ROW)
+      replaced = static_cast<uint64_t>(sqlite3_column_int64(q.get(), 0));
+  }
+  if (quota_bytes_ > 0 && used_bytes_ - replaced + bytes > quota_bytes_)
+    return ResourceExhausted("the object store is full: it holds " + Megabytes(used_bytes_) +
+                             " of its " + Megabytes(quota_bytes_) +
+                             " quota and this object takes " + Megabytes(bytes) +
+                             "; delete objects you no longer need (DeleteObject) or start rheod "
+                             "with a larger --store-quota");
   Stmt st(db_,
-          "INSERT OR REPLACE INTO objects (id, name, created_ms, meta, sketch, sketch_kind,"
-          " background, mesh, triangulation_svg) VALUES (?,?,?,?,?,?,?,?,?)");
+          // Replaces an object under its own id; another object's request_id is a conflict.
+          "INSERT INTO objects (id, name, created_ms, meta, sketch, sketch_kind,"
+          " background, mesh, triangulation_svg, request_id) VALUES (?,?,?,?,?,?,?,?,?,?)"
+          " ON CONFLICT(id) DO UPDATE SET name = excluded.name, created_ms = excluded.created_ms,"
+          " meta = excluded.meta, sketch = excluded.sketch, sketch_kind = excluded.sketch_kind,"
+          " background = excluded.background, mesh = excluded.mesh,"
+          " triangulation_svg = excluded.triangulation_svg, request_id = excluded.request_id");
   if (!st.ok()) return Internal("object store: " + st.Error());
   st.Text(1, o.id);
   st.Text(2, o.name);
@@ -109,11 +169,42 @@ Status Store::Put(const StoredObject& o) {
   st.Blob(5, o.sketch);
   st.Text(6, o.sketch_kind);
   st.Blob(7, o.background);
-  st.Blob(8, EncodeMeshBlob(o.mesh));
+  st.Blob(8, mesh);
   st.Text(9, o.triangulation_svg);
-  if (sqlite3_step(st.get()) != SQLITE_DONE)
+  if (o.request_id.empty())
+    sqlite3_bind_null(st.get(), 10);
+  else
+    st.Text(10, o.request_id);
+  const int rc = sqlite3_step(st.get());
+  if (rc == SQLITE_CONSTRAINT)
+    return Error{ErrorCode::kAlreadyExists,
+                 "another object was stored with request_id '" + o.request_id + "'"};
+  if (rc != SQLITE_DONE)
     return Error{ErrorCode::kUnavailable, "object store: cannot save " + o.id + ": " + st.Error()};
+  used_bytes_ = used_bytes_ - replaced + bytes;
   return Status::Ok();
+}
+
+Result<StoredObject> Store::FindByRequestId(const std::string& request_id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Stmt st(db_, "SELECT id, name, created_ms, meta FROM objects WHERE request_id = ?");
+  if (!st.ok()) return Internal("object store: " + st.Error());
+  st.Text(1, request_id);
+  const int rc = sqlite3_step(st.get());
+  if (rc == SQLITE_DONE) return NotFound("no object was stored with this request_id");
+  if (rc != SQLITE_ROW) return Internal("object store: " + st.Error());
+  StoredObject o;
+  o.id = st.ColumnBytes(0);
+  o.name = st.ColumnBytes(1);
+  o.created_unix_ms = sqlite3_column_int64(st.get(), 2);
+  o.meta = st.ColumnBytes(3);
+  o.request_id = request_id;
+  return o;
+}
+
+uint64_t Store::used_bytes() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return used_bytes_;
 }
 
 Result<StoredObject> Store::Get(const std::string& id, bool with_mesh) {
@@ -187,11 +278,20 @@ Result<std::vector<StoredObject>> Store::List(uint32_t limit, const std::string&
 
 Status Store::Delete(const std::string& id) {
   std::lock_guard<std::mutex> lock(mutex_);
+  uint64_t bytes = 0;
+  {
+    Stmt q(db_, kRowSize);
+    if (!q.ok()) return Internal("object store: " + q.Error());
+    q.Text(1, id);
+    if (sqlite3_step(q.get()) == SQLITE_ROW)
+      bytes = static_cast<uint64_t>(sqlite3_column_int64(q.get(), 0));
+  }
   Stmt st(db_, "DELETE FROM objects WHERE id = ?");
   if (!st.ok()) return Internal("object store: " + st.Error());
   st.Text(1, id);
   if (sqlite3_step(st.get()) != SQLITE_DONE) return Internal("object store: " + st.Error());
   if (sqlite3_changes(db_) == 0) return NotFound("no object with id '" + id + "'");
+  used_bytes_ -= std::min(used_bytes_, bytes);
   return Status::Ok();
 }
 

@@ -26,17 +26,27 @@ struct StoredObject {
   std::string background;         // optional background photo bytes
   TetMesh mesh;                   // the tetrahedral rest shape [m]
   std::string triangulation_svg;  // 2D triangulation coloured by class
+  std::string request_id;         // the client's CreateObject request id ("" when none)
 };
 
 /// Thread-safe (one connection behind a mutex; never used from the real-time loop). Every write
 /// is one transaction, so a crash leaves either the old or the new object, never half of one.
 class Store {
  public:
-  /// Opens or creates `path` (WAL journal). Errors name the file and SQLite's reason.
-  static Result<std::unique_ptr<Store>> Open(const std::string& path);
+  /// Opens or creates `path` (WAL journal); a version 1 store is upgraded in place. Errors name
+  /// the file and SQLite's reason. `quota_bytes` bounds what the objects may take in all
+  /// (sketch, background, mesh, reports); 0 = no bound.
+  static Result<std::unique_ptr<Store>> Open(const std::string& path, uint64_t quota_bytes = 0);
   ~Store();
 
+  /// RESOURCE_EXHAUSTED when the object would take the store past its quota (nothing stored is
+  /// touched); ALREADY_EXISTS when another object has its request_id.
   Status Put(const StoredObject& object);
+  /// The object a CreateObject with `request_id` stored, without mesh and sketch bytes.
+  Result<StoredObject> FindByRequestId(const std::string& request_id);
+  /// Bytes the stored objects take (as the quota counts them).
+  uint64_t used_bytes();
+  uint64_t quota_bytes() const { return quota_bytes_; }
   /// NOT_FOUND names the id.
   Result<StoredObject> Get(const std::string& id, bool with_mesh = true);
   /// Objects by creation time (newest first), without their mesh and sketch bytes.
@@ -55,6 +65,8 @@ class Store {
 
   std::mutex mutex_;
   sqlite3* db_;
+  uint64_t quota_bytes_ = 0;
+  uint64_t used_bytes_ = 0;  // under mutex_
 };
 
 }  // namespace rheo::daemon
