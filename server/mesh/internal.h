@@ -6,6 +6,7 @@
 #include <functional>
 #include <vector>
 
+#include "common/cancel.h"
 #include "common/geometry.h"
 #include "common/status.h"
 #include "mesh/mesh.h"
@@ -76,7 +77,9 @@ Result<TetMesh> BuildColumns(const Mesh2& mesh2, const std::vector<double>& heig
 /// their neighbours' centroid when that raises the smallest dihedral angle around them; at most
 /// `sweeps` passes. Vertices on the surface with z != 0 stay on z = +-height(x, y) (none move
 /// when `height` is empty); contour vertices (z = 0) stay put.
+/// Stops between vertices (the mesh stays valid, partly improved) when `cancel` asks to.
 void ImproveTets(TetMesh& mesh, double threshold_deg, int sweeps,
-                 const std::function<double(const Vec2&)>& height);
+                 const std::function<double(const Vec2&)>& height,
+                 const CancelToken& cancel = CancelToken());
 
 }  // namespace rheo::mesh::internal
