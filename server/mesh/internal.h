@@ -19,9 +19,11 @@ Result<std::vector<Vec2>> ContourToMetres(const Polygon2& contour_px, double pix
 
 /// Resamples a counter-clockwise polygon to even spacing <= `spacing` [m], halving the spacing
 /// while the result self-intersects; falls back to the input, and refuses it (saying where, in
-/// pixels) when that is not simple either.
+/// pixels) when that is not simple either. Never returns more points than the input has. Locating
+/// the crossing for the message is quadratic; `cancel` stops it.
 Result<std::vector<Vec2>> ResampleContour(const std::vector<Vec2>& polygon, double spacing,
-                                          double pixel_size);
+                                          double pixel_size,
+                                          const CancelToken& cancel = CancelToken());
 
 bool IsSimplePolygon(const std::vector<Vec2>& polygon);
 

@@ -74,7 +74,8 @@ Result<MeshResult> BuildSolid(const Polygon2& contour_px, const MeshOptions& opt
                              Num(options.pixel_size) + " m/px)");
     }
   }
-  auto resampled = internal::ResampleContour(*metres, options.resolution, options.pixel_size);
+  auto resampled =
+      internal::ResampleContour(*metres, options.resolution, options.pixel_size, options.cancel);
   if (!resampled.ok()) return resampled.error();
   r.contour = std::move(*resampled);
 
