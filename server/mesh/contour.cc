@@ -101,7 +101,7 @@ Result<std::vector<Vec2>> ContourToMetres(const Polygon2& contour_px, double pix
 }
 
 Result<std::vector<Vec2>> ResampleContour(const std::vector<Vec2>& input, double spacing,
-                                          double pixel_size) {
+                                          double pixel_size, const CancelToken& cancel) {
   std::vector<Vec2> polygon = input;
   if (!IsSimplePolygon(polygon)) {
     double perimeter = 0;
@@ -136,6 +136,7 @@ Result<std::vector<Vec2>> ResampleContour(const std::vector<Vec2>& input, double
   if (IsSimplePolygon(out)) return out;
   // Locate one crossing for the message (quadratic, but only on the failure path).
   for (size_t i = 0; i < n && i < 20000; ++i) {
+    if (Status s = cancel.Check("the contour check"); !s) return s.error();
     for (size_t j = i + 2; j < n; ++j) {
       if (i == 0 && j == n - 1) continue;
       if (SegmentsIntersect(out[i], out[(i + 1) % n], out[j], out[(j + 1) % n])) {

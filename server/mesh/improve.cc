@@ -28,7 +28,7 @@ double MaxDihedralCos(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3
 }  // namespace
 
 void ImproveTets(TetMesh& mesh, double threshold_deg, int sweeps,
-                 const std::function<double(const Vec2&)>& height) {
+                 const std::function<double(const Vec2&)>& height, const CancelToken& cancel) {
   const size_t nv = mesh.positions.size();
   // 0 interior (moves freely), 1 on the top or bottom surface (moves on it), 2 fixed (contour).
   std::vector<uint8_t> kind(nv, 0);
@@ -56,6 +56,7 @@ void ImproveTets(TetMesh& mesh, double threshold_deg, int sweeps,
   const double threshold_cos = std::cos(threshold_deg * std::numbers::pi / 180.0);
   std::vector<int32_t> todo;
   for (int sweep = 0; sweep < sweeps; ++sweep) {
+    if (cancel.stop_requested()) return;
     todo.clear();
     for (size_t k = 0; k < mesh.tets.size(); ++k)
       if (tet_cos(static_cast<int32_t>(k)) > threshold_cos)
@@ -65,7 +66,9 @@ void ImproveTets(TetMesh& mesh, double threshold_deg, int sweeps,
     todo.erase(std::unique(todo.begin(), todo.end()), todo.end());
     if (todo.empty()) break;
     int moved = 0;
-    for (int32_t v : todo) {
+    for (size_t n = 0; n < todo.size(); ++n) {
+      if ((n & 1023) == 1023 && cancel.stop_requested()) return;
+      const int32_t v = todo[n];
       Vec3 centroid = Vec3::Zero();
       int count = 0;
       for (int32_t i = start[v]; i < start[v + 1]; ++i)

@@ -6,6 +6,7 @@
 #include <functional>
 #include <vector>
 
+#include "common/cancel.h"
 #include "common/geometry.h"
 #include "common/status.h"
 #include "mesh/mesh.h"
@@ -18,9 +19,11 @@ Result<std::vector<Vec2>> ContourToMetres(const Polygon2& contour_px, double pix
 
 /// Resamples a counter-clockwise polygon to even spacing <= `spacing` [m], halving the spacing
 /// while the result self-intersects; falls back to the input, and refuses it (saying where, in
-/// pixels) when that is not simple either.
+/// pixels) when that is not simple either. Never returns more points than the input has. Locating
+/// the crossing for the message is quadratic; `cancel` stops it.
 Result<std::vector<Vec2>> ResampleContour(const std::vector<Vec2>& polygon, double spacing,
-                                          double pixel_size);
+                                          double pixel_size,
+                                          const CancelToken& cancel = CancelToken());
 
 bool IsSimplePolygon(const std::vector<Vec2>& polygon);
 
@@ -76,7 +79,9 @@ Result<TetMesh> BuildColumns(const Mesh2& mesh2, const std::vector<double>& heig
 /// their neighbours' centroid when that raises the smallest dihedral angle around them; at most
 /// `sweeps` passes. Vertices on the surface with z != 0 stay on z = +-height(x, y) (none move
 /// when `height` is empty); contour vertices (z = 0) stay put.
+/// Stops between vertices (the mesh stays valid, partly improved) when `cancel` asks to.
 void ImproveTets(TetMesh& mesh, double threshold_deg, int sweeps,
-                 const std::function<double(const Vec2&)>& height);
+                 const std::function<double(const Vec2&)>& height,
+                 const CancelToken& cancel = CancelToken());
 
 }  // namespace rheo::mesh::internal

@@ -9,6 +9,7 @@
 #include <string_view>
 #include <vector>
 
+#include "common/cancel.h"
 #include "common/geometry.h"
 #include "common/status.h"
 
@@ -102,8 +103,17 @@ struct MeshOptions {
   int64_t max_contour_points = 100000;
   int64_t max_vertices = 2000000;
   int64_t max_tets = 10000000;
+  /// Smallest solid: both sides of the contour's bounding box must be at least this [m]. Below
+  /// it the tetrahedra are too small for the simulation's arithmetic (kInvalidArgument).
+  double min_object_size = 1e-3;
+  /// Smallest tetrahedron accepted [m^3]; a smaller one is refused (kInvalidArgument).
+  double min_tet_volume = 1e-18;
   /// Optional progress / cancellation hook.
   ProgressFn progress;
+  /// Checked between stages and inside the long loops; a stopped build returns kCancelled or
+  /// kDeadlineExceeded. The CGAL triangulation and 2D mesher cannot be interrupted: their input
+  /// is bounded instead (max_contour_points, and max_vertices through the 2D mesh estimate).
+  CancelToken cancel;
 };
 
 struct MeshResult {
@@ -120,7 +130,9 @@ struct MeshResult {
 /// produces it). The result is in metres, y up, z through the thickness. Errors:
 /// kInvalidArgument (fewer than 3 distinct points, non-finite coordinates, zero area,
 /// self-intersection: the message says where), kResourceExhausted (a limit in options, named),
-/// kCancelled (the progress hook returned false), kInternal (a broken invariant).
+/// kCancelled (the progress hook returned false or `cancel` was cancelled), kDeadlineExceeded
+/// (`cancel`'s deadline passed), kInternal (a broken invariant). A contour smaller than
+/// min_object_size, or tetrahedra under min_tet_volume, are kInvalidArgument with the numbers.
 Result<MeshResult> BuildSolid(const Polygon2& contour_px, const MeshOptions& options);
 
 /// Runs every check of QualityReport on a tetrahedral mesh.

@@ -1,9 +1,75 @@
 #include "sketch/polyline.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 
 namespace rheo::sketch::internal {
+namespace {
+
+// Edges of a closed polygon binned in a uniform grid of about one cell per edge; an edge is
+// listed in every cell its pieces (no longer than a cell) touch.
+class EdgeGrid {
+ public:
+  EdgeGrid(const std::vector<Vec2>& p, double min_cell) {
+    const int n = static_cast<int>(p.size());
+    double perimeter = 0.0;
+    for (int i = 0; i < n; ++i) box_.extend(p[i]), perimeter += (p[(i + 1) % n] - p[i]).norm();
+    const Vec2 ext = box_.max() - box_.min();
+    // At most about 3n cells and 5n entries, whatever the shape.
+    cell_ = std::max({std::sqrt(ext.x() * ext.y() / std::max(1, n)),
+                      std::max(ext.x(), ext.y()) / std::max(1, n), perimeter / (4.0 * n), min_cell,
+                      1e-9});
+    nx_ = static_cast<int>(ext.x() / cell_) + 1;
+    ny_ = static_cast<int>(ext.y() / cell_) + 1;
+    std::vector<std::pair<int, int>> entries;
+    for (int i = 0; i < n; ++i) {
+      const Vec2& a = p[i];
+      const Vec2& b = p[(i + 1) % n];
+      const int pieces = static_cast<int>(std::ceil((b - a).norm() / cell_)) + 1;
+      for (int m = 0; m < pieces; ++m) {
+        const Vec2 u = a + (b - a) * (double(m) / pieces);
+        const Vec2 v = a + (b - a) * (double(m + 1) / pieces);
+        for (int y = CellY(std::min(u.y(), v.y())); y <= CellY(std::max(u.y(), v.y())); ++y)
+          for (int x = CellX(std::min(u.x(), v.x())); x <= CellX(std::max(u.x(), v.x())); ++x) {
+            const int c = y * nx_ + x;
+            if (entries.empty() || entries.back() != std::make_pair(c, i))
+              entries.emplace_back(c, i);
+          }
+      }
+    }
+    start_.assign(size_t(nx_) * ny_ + 1, 0);
+    for (const auto& e : entries) ++start_[e.first + 1];
+    for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+    items_.resize(entries.size());
+    std::vector<int> fill(start_.begin(), start_.end() - 1);
+    for (const auto& e : entries) items_[fill[e.first]++] = e.second;
+  }
+  int CellX(double x) const {
+    return std::clamp(static_cast<int>(std::floor((x - box_.min().x()) / cell_)), 0, nx_ - 1);
+  }
+  int CellY(double y) const {
+    return std::clamp(static_cast<int>(std::floor((y - box_.min().y()) / cell_)), 0, ny_ - 1);
+  }
+  double cell() const { return cell_; }
+  // Calls f(edge) for the edges listed in the cells that the box lo..hi overlaps.
+  template <typename F>
+  void ForEach(const Vec2& lo, const Vec2& hi, F f) const {
+    for (int y = CellY(lo.y()); y <= CellY(hi.y()); ++y)
+      for (int x = CellX(lo.x()); x <= CellX(hi.x()); ++x) {
+        const int c = y * nx_ + x;
+        for (int k = start_[c]; k < start_[c + 1]; ++k) f(items_[k]);
+      }
+  }
+
+ private:
+  Eigen::AlignedBox2d box_;
+  double cell_ = 1.0;
+  int nx_ = 1, ny_ = 1;
+  std::vector<int> start_, items_;
+};
+
+}  // namespace
 
 double SignedArea(const std::vector<Vec2>& p) {
   const size_t n = p.size();
@@ -98,7 +164,7 @@ std::vector<Vec2> ResampleClosed(const std::vector<Vec2>& p, double spacing) {
 }
 
 std::vector<int> SimplifyClosed(const std::vector<Vec2>& chain, double epsilon,
-                                double* max_distance) {
+                                double* max_distance, const CancelToken& cancel) {
   const int n = static_cast<int>(chain.size());
   double worst = 0.0;
   if (n <= 3) {
@@ -120,13 +186,19 @@ std::vector<int> SimplifyClosed(const std::vector<Vec2>& chain, double epsilon,
     int first, last;  // indices into the unrolled chain (last may be n, meaning 0)
   };
   std::vector<Span> stack = {{0, m}, {m, n}};
+  int64_t work = 0;  // points measured since the last look at the token
   while (!stack.empty()) {
+    if (work > (1 << 16)) {
+      if (cancel.stop_requested()) break;
+      work = 0;
+    }
     const Span sp = stack.back();
     stack.pop_back();
     const Vec2& a = chain[sp.first];
     const Vec2& b = chain[sp.last % n];
     double hmax = -1.0;
     int split = -1;
+    work += sp.last - sp.first;
     for (int i = sp.first + 1; i < sp.last; ++i) {
       const double h = PointSegmentDistance(chain[i], a, b);
       if (h > hmax) hmax = h, split = i;
@@ -147,26 +219,54 @@ std::vector<int> SimplifyClosed(const std::vector<Vec2>& chain, double epsilon,
   return idx;
 }
 
-std::optional<Crossing> FindSelfCrossing(const std::vector<Vec2>& p) {
+std::optional<Crossing> FindSelfCrossing(const std::vector<Vec2>& p, const CancelToken& cancel) {
   const int n = static_cast<int>(p.size());
   if (n < 4) return std::nullopt;
+  const EdgeGrid grid(p, 0.0);
+  std::vector<int> seen(n, -1);  // the edge i that last compared with edge j
   for (int i = 0; i < n; ++i) {
+    if ((i & 255) == 255 && cancel.stop_requested()) return std::nullopt;
     const Vec2& a = p[i];
     const Vec2& b = p[(i + 1) % n];
     const double minx = std::min(a.x(), b.x()), maxx = std::max(a.x(), b.x());
     const double miny = std::min(a.y(), b.y()), maxy = std::max(a.y(), b.y());
-    for (int j = i + 2; j < n; ++j) {
-      if (i == 0 && j == n - 1) continue;  // adjacent through the closing edge
+    // The lowest j > i + 1 whose edge crosses edge i; edges sharing no cell cannot touch it.
+    int best_j = n;
+    std::optional<SegmentHit> best_hit;
+    grid.ForEach(Vec2(minx, miny), Vec2(maxx, maxy), [&](int j) {
+      if (j < i + 2 || j >= best_j || seen[j] == i) return;
+      seen[j] = i;
+      if (i == 0 && j == n - 1) return;  // adjacent through the closing edge
       const Vec2& c = p[j];
       const Vec2& d = p[(j + 1) % n];
       if (std::max(c.x(), d.x()) < minx || std::min(c.x(), d.x()) > maxx ||
           std::max(c.y(), d.y()) < miny || std::min(c.y(), d.y()) > maxy) {
-        continue;
+        return;
       }
-      if (auto hit = IntersectSegments(a, b, c, d)) return Crossing{i, j, hit->point};
-    }
+      if (auto hit = IntersectSegments(a, b, c, d)) best_j = j, best_hit = hit;
+    });
+    if (best_hit) return Crossing{i, best_j, best_hit->point};
   }
   return std::nullopt;
+}
+
+double MaxNearDistance(const std::vector<Vec2>& points, const std::vector<Vec2>& poly, double reach,
+                       const CancelToken& cancel) {
+  const int n = static_cast<int>(poly.size());
+  if (n == 0) return 0.0;
+  const EdgeGrid grid(poly, reach);
+  double worst = 0.0;
+  for (size_t k = 0; k < points.size(); ++k) {
+    if ((k & 1023) == 1023 && cancel.stop_requested()) break;
+    const Vec2& q = points[k];
+    // The nearest edge, if it is within reach, is listed in a cell within reach of q.
+    double d = INFINITY;
+    grid.ForEach(q - Vec2(reach, reach), q + Vec2(reach, reach), [&](int i) {
+      d = std::min(d, PointSegmentDistance(q, poly[i], poly[(i + 1) % n]));
+    });
+    if (d <= reach) worst = std::max(worst, d);
+  }
+  return worst;
 }
 
 void RemoveNearDuplicates(std::vector<Vec2>& p, double min_spacing) {

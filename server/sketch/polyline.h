@@ -5,6 +5,7 @@
 #include <optional>
 #include <vector>
 
+#include "common/cancel.h"
 #include "common/geometry.h"
 
 namespace rheo::sketch::internal {
@@ -31,8 +32,9 @@ std::vector<Vec2> ResampleClosed(const std::vector<Vec2>& closed, double spacing
 /// Recursive split (paper 3.4) of a closed chain: indices of the kept points, in order, such that
 /// every chain point lies within epsilon of the polygon edge spanning it. Iterative (no recursion
 /// depth limit). max_distance receives the largest chain-to-edge distance.
+/// Stops early (the result is then incomplete) when `cancel` asks to.
 std::vector<int> SimplifyClosed(const std::vector<Vec2>& chain, double epsilon,
-                                double* max_distance);
+                                double* max_distance, const CancelToken& cancel = CancelToken());
 
 /// First crossing of two non-adjacent edges of a closed polygon, if any.
 struct Crossing {
@@ -40,7 +42,16 @@ struct Crossing {
   int edge_b = 0;  ///< edge_b > edge_a
   Vec2 point;
 };
-std::optional<Crossing> FindSelfCrossing(const std::vector<Vec2>& closed);
+/// The first by (edge_a, edge_b). Edges are binned in a uniform grid, so only edges that share a
+/// cell are compared: about linear for drawn outlines (all pairs only when every edge crosses the
+/// whole outline). Returns nothing when `cancel` stops it.
+std::optional<Crossing> FindSelfCrossing(const std::vector<Vec2>& closed,
+                                         const CancelToken& cancel = CancelToken());
+
+/// Largest distance to the closed polygon over the points of `points` that lie within `reach` of
+/// it (0 when none does). Compares each point only with the edges near it.
+double MaxNearDistance(const std::vector<Vec2>& points, const std::vector<Vec2>& closed,
+                       double reach, const CancelToken& cancel = CancelToken());
 
 /// Removes consecutive points closer than min_spacing (closing point included).
 void RemoveNearDuplicates(std::vector<Vec2>& closed, double min_spacing);

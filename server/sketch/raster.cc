@@ -192,7 +192,7 @@ Bitmap Binarize(const GrayImage& img, const ContourOptions& o, std::string* desc
   return out;
 }
 
-int HilditchThin(Bitmap& bm) {
+int HilditchThin(Bitmap& bm, const CancelToken& cancel) {
   const auto& tb = T();
   const int s = bm.stride;
   const auto off = Offsets(s);
@@ -211,6 +211,7 @@ int HilditchThin(Bitmap& bm) {
   // Interior pixels (all 8 neighbours ink) can never go, so the list holds every pixel that
   // might: last pass's survivors plus the neighbours of its deletions.
   for (;;) {
+    if (cancel.stop_requested()) break;
     ++passes;
     deleted.clear();
     next.clear();
@@ -255,7 +256,7 @@ int ConnectivityNumber(const Bitmap& bm, int x, int y) {
   return T().n8[MaskOf(bm.v.data(), bm.Index(x, y), Offsets(bm.stride), 1)];
 }
 
-int64_t RemoveSpurs(Bitmap& bm) {
+int64_t RemoveSpurs(Bitmap& bm, const CancelToken& cancel) {
   const auto& tb = T();
   const int s = bm.stride;
   const auto off = Offsets(s);
@@ -278,6 +279,7 @@ int64_t RemoveSpurs(Bitmap& bm) {
   int64_t removed = 0;
   // Rescan until nothing changes; only pixels near a deletion can change their status.
   while (!cand.empty()) {
+    if (cancel.stop_requested()) break;
     next.clear();
     for (int i : cand) {
       v[i] &= ~kListed;

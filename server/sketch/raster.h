@@ -55,12 +55,13 @@ Bitmap Binarize(const GrayImage& image, const ContourOptions& options, std::stri
 
 /// Hilditch thinning (sequential topology check, parallel border conditions per pass), visiting
 /// only border pixels and pixels near the last pass's deletions. Returns the number of passes.
-int HilditchThin(Bitmap& bitmap);
+/// Stops between passes (unfinished) when `cancel` asks to.
+int HilditchThin(Bitmap& bitmap, const CancelToken& cancel = CancelToken());
 
 /// Extra-line elimination (paper 3.3) by the Yokoi 8-connectivity number: 0 (isolated) and 1
 /// (end or redundant pixel) are deleted; 2 and 3 only next to a one-pixel hole. Repeated until
 /// nothing changes. Returns the number of deleted pixels.
-int64_t RemoveSpurs(Bitmap& bitmap);
+int64_t RemoveSpurs(Bitmap& bitmap, const CancelToken& cancel = CancelToken());
 
 /// Yokoi 8-connectivity number and neighbour count of pixel (x, y) (tests).
 int ConnectivityNumber(const Bitmap& bitmap, int x, int y);

@@ -61,13 +61,20 @@ Status Finish(std::vector<Vec2> chain, const ContourOptions& o, ContourResult& r
                            std::to_string(chain.size()) + " distinct points");
   }
   double hmax = 0.0;
-  const std::vector<int> idx = internal::SimplifyClosed(chain, o.epsilon_px, &hmax);
+  const std::vector<int> idx = internal::SimplifyClosed(chain, o.epsilon_px, &hmax, o.cancel);
+  if (Status s = o.cancel.Check("vectorization"); !s) return s;
+  if (static_cast<int64_t>(idx.size()) > o.max_contour_points) {
+    return ResourceExhausted("the outline vectorizes to " + std::to_string(idx.size()) +
+                             " points, over the limit of " + std::to_string(o.max_contour_points) +
+                             " (max_contour_points); draw a simpler outline or raise epsilon");
+  }
   std::vector<Vec2> poly;
   poly.reserve(idx.size());
   for (int i : idx) poly.push_back(chain[i]);
   bool repaired = false;
   for (int guard = 0; guard < 1000; ++guard) {
-    const auto x = internal::FindSelfCrossing(poly);
+    const auto x = internal::FindSelfCrossing(poly, o.cancel);
+    if (Status s = o.cancel.Check("the self-crossing check"); !s) return s;
     if (!x) break;
     if (!o.repair_self_crossing) {
       return InvalidArgument("self-crossing outline at " + Pt(x->point) + " (edges " +
@@ -108,11 +115,8 @@ Status Finish(std::vector<Vec2> chain, const ContourOptions& o, ContourResult& r
   }
   if (repaired) {
     // Distance of the kept part of the drawn line to the final contour.
-    hmax = 0.0;
-    for (const Vec2& p : chain) {
-      const double d = internal::PointPolygonDistance(p, poly);
-      if (d <= 3.0 * o.epsilon_px + 2.0) hmax = std::max(hmax, d);
-    }
+    hmax = internal::MaxNearDistance(chain, poly, 3.0 * o.epsilon_px + 2.0, o.cancel);
+    if (Status s = o.cancel.Check("vectorization"); !s) return s;
   }
   r.contour.points = std::move(poly);
   r.epsilon_px = o.epsilon_px;
@@ -137,6 +141,7 @@ Result<ContourResult> ContourFromStrokesJson(std::string_view json, const Contou
   r.width = set->width;
   r.height = set->height;
   sw.Lap("parse", r);
+  if (Status s = o.cancel.Check("stroke parsing"); !s) return s.error();
   auto merged = internal::MergeStrokes(*set, o);
   if (!merged.ok()) return merged.error();
   r.repairs = std::move(merged->repairs);
@@ -154,6 +159,7 @@ Result<ContourResult> ContourFromStrokesJson(std::string_view json, const Contou
   }
   std::vector<Vec2> dense = internal::ResampleClosed(merged->closed, spacing);
   sw.Lap("resample", r);
+  if (Status s = o.cancel.Check("resampling"); !s) return s.error();
   if (Status s = Finish(std::move(dense), o, r); !s) return s.error();
   sw.Lap("vectorize", r);
   return r;
@@ -390,12 +396,14 @@ class Extractor {
     e.comp = id;
     auto t0 = Now();
     Bitmap b = Crop(c, false);
-    internal::HilditchThin(b);
+    internal::HilditchThin(b, o_.cancel);
+    if (Status s = o_.cancel.Check("thinning"); !s) return s.error();
     auto t1 = Now();
     t_thin += Ms(t0, t1);
     Bitmap skeleton;
     if (c.kind == Component::kOpen) skeleton = b;  // for finding its ends
-    internal::RemoveSpurs(b);
+    internal::RemoveSpurs(b, o_.cancel);
+    if (Status s = o_.cancel.Check("extra-line removal"); !s) return s.error();
     int64_t kept = b.Count();
     if (kept == 0 && skeleton.v.empty()) {
       return InvalidArgument("not closed: the line in " + Box(c) + " encloses nothing");
@@ -403,7 +411,8 @@ class Extractor {
     if (kept == 0) {
       if (Status s = CloseGap(c, skeleton, e); !s) return s.error();
       b = std::move(skeleton);
-      internal::RemoveSpurs(b);
+      internal::RemoveSpurs(b, o_.cancel);
+      if (Status s = o_.cancel.Check("extra-line removal"); !s) return s.error();
       kept = b.Count();
       if (kept == 0)
         return InvalidArgument("not closed: the line in " + Box(c) + " encloses nothing");
@@ -590,13 +599,16 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
   Result<internal::GrayImage> img = Decode(bytes, o, r);
   if (!img.ok()) return img.error();
   sw.Lap("decode", r);
+  if (Status s = o.cancel.Check("decoding"); !s) return s.error();
 
   Bitmap bm = internal::Binarize(*img, o, &r.binarization, &r.warnings);
   img = InvalidArgument("");  // release the grey picture
   sw.Lap("binarize", r);
+  if (Status s = o.cancel.Check("binarization"); !s) return s.error();
 
   Components parts = FindComponents(bm);
   sw.Lap("components", r);
+  if (Status s = o.cancel.Check("component labelling"); !s) return s.error();
   Classify(parts, r.width, r.height, r.warnings);
 
   const std::vector<int> order = Candidates(parts);
@@ -606,6 +618,7 @@ Result<ContourResult> ContourFromImage(std::span<const uint8_t> bytes, const Con
   }
   Extractor ex(parts, o);
   Selection sel = SelectLargest(parts, order, ex);
+  if (Status s = o.cancel.Check("outline extraction"); !s) return s.error();
   r.timings.push_back({"thin", ex.t_thin});
   r.timings.push_back({"spurs", ex.t_spur});
   r.timings.push_back({"trace", ex.t_trace});

@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/cancel.h"
 #include "common/geometry.h"
 #include "common/status.h"
 
@@ -44,6 +45,13 @@ struct ContourOptions {
   int64_t max_pixels = 16LL * 1024 * 1024;       ///< picture width x height [pixels]
   int64_t max_input_bytes = 32LL * 1024 * 1024;  ///< encoded picture or JSON size [bytes]
   int64_t max_stroke_points = 100000;            ///< points over all strokes
+  int64_t max_strokes = 20000;                   ///< strokes of two or more distinct points
+  /// Largest vectorized outline [points]; the self-crossing check and repair grow with it.
+  int64_t max_contour_points = 20000;
+
+  /// Checked inside every long loop; a stopped extraction returns kCancelled or
+  /// kDeadlineExceeded. The default never stops.
+  CancelToken cancel;
 };
 
 /// Where the sketch came from.

@@ -5,9 +5,11 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <nlohmann/json.hpp>
 #include <optional>
 
+#include "common/cancel.h"
 #include "sketch/format.h"
 #include "sketch/polyline.h"
 
@@ -327,16 +329,6 @@ Join BestJoin(const std::vector<Vec2>& a, const std::vector<Vec2>& b, double w) 
   return j;
 }
 
-// a[0..cut] followed by b[cut..end].
-std::vector<Vec2> Splice(const std::vector<Vec2>& a, Cut ca, const std::vector<Vec2>& b, Cut cb) {
-  std::vector<Vec2> out(a.begin(), a.begin() + std::min<int>(ca.i + 1, a.size()));
-  if (ca.i + 1 < static_cast<int>(a.size()) && ca.t > 0.0) out.push_back(At(a, ca));
-  const Vec2 start_b = At(b, cb);
-  if (out.empty() || (out.back() - start_b).norm() > 1e-9) out.push_back(start_b);
-  for (size_t k = cb.i + 1; k < b.size(); ++k) out.push_back(b[k]);
-  return out;
-}
-
 void Clean(std::vector<Vec2>& p) {
   std::vector<Vec2> out;
   out.reserve(p.size());
@@ -349,6 +341,177 @@ struct Chain {
   std::vector<Vec2> pts;
   std::vector<int> strokes;  // stroke indices joined, in order
   std::vector<std::string> repairs;
+};
+
+// The outline being grown: appends and trims at the end, and reverses in O(1) (logical point i
+// is d_[n - 1 - i] when reversed), so a join costs the points it touches, not the chain's length.
+class GrowingChain {
+ public:
+  explicit GrowingChain(const std::vector<Vec2>& p)
+      : d_(p.begin(), p.end()), length_(OpenLength(p)) {}
+  int size() const { return static_cast<int>(d_.size()); }
+  const Vec2& operator[](int i) const { return rev_ ? d_[d_.size() - 1 - i] : d_[i]; }
+  const Vec2& front() const { return (*this)[0]; }
+  const Vec2& back() const { return (*this)[size() - 1]; }
+  double length() const { return length_; }
+  void Reverse() { rev_ = !rev_; }
+  void PopBack() {
+    if (size() >= 2) length_ -= (back() - (*this)[size() - 2]).norm();
+    rev_ ? d_.pop_front() : d_.pop_back();
+  }
+  void PushBack(const Vec2& p) {
+    if (!d_.empty()) length_ += (p - back()).norm();
+    rev_ ? d_.push_front(p) : d_.push_back(p);
+  }
+  std::vector<Vec2> ToVector() const {
+    std::vector<Vec2> out;
+    out.reserve(d_.size());
+    for (int i = 0; i < size(); ++i) out.push_back((*this)[i]);
+    return out;
+  }
+  // The chain as BestJoin's `a` sees it (reversed when `head`), from TailStart(a, w) to its end;
+  // *first receives that start index in `a`.
+  std::vector<Vec2> EndWindow(bool head, double w, int* first) const {
+    const int n = size();
+    auto at = [&](int k) -> const Vec2& { return head ? (*this)[n - 1 - k] : (*this)[k]; };
+    double l = 0.0;
+    int i = n - 1;
+    while (i > 0 && l + (at(i) - at(i - 1)).norm() <= w) l += (at(i) - at(i - 1)).norm(), --i;
+    *first = std::max(0, i - 1);
+    std::vector<Vec2> out;
+    out.reserve(n - *first);
+    for (int k = *first; k < n; ++k) out.push_back(at(k));
+    return out;
+  }
+
+ private:
+  std::deque<Vec2> d_;
+  bool rev_ = false;
+  double length_ = 0.0;
+};
+
+// The leading part of p (reversed when `rev`) that BestJoin reads: points 0..HeadEnd(b, w).
+std::vector<Vec2> HeadWindow(const std::vector<Vec2>& p, bool rev, double w) {
+  const int n = static_cast<int>(p.size());
+  auto at = [&](int k) -> const Vec2& { return rev ? p[n - 1 - k] : p[k]; };
+  double l = 0.0;
+  int i = 0;
+  while (i + 1 < n && l + (at(i + 1) - at(i)).norm() <= w) l += (at(i + 1) - at(i)).norm(), ++i;
+  const int last = std::min(n - 1, i + 1);
+  std::vector<Vec2> out;
+  out.reserve(last + 1);
+  for (int k = 0; k <= last; ++k) out.push_back(at(k));
+  return out;
+}
+
+double BoxDistance(const Eigen::AlignedBox2d& a, const Eigen::AlignedBox2d& b) {
+  const double dx = std::max({0.0, a.min().x() - b.max().x(), b.min().x() - a.max().x()});
+  const double dy = std::max({0.0, a.min().y() - b.max().y(), b.min().y() - a.max().y()});
+  return std::hypot(dx, dy);
+}
+
+// Uniform grid over the strokes: each stroke is listed in the cells its segments pass through
+// (segments cut into pieces no longer than a cell). About one cell per stroke, so finding the
+// strokes near a chain end costs what lies near it, not the whole drawing. A stroke that would
+// fill too many cells is kept in a short list checked by its bounding box instead.
+class StrokeGrid {
+ public:
+  StrokeGrid(const std::vector<std::vector<Vec2>>& strokes) {
+    const int n = static_cast<int>(strokes.size());
+    double total = 0.0;
+    for (const auto& s : strokes) {
+      for (const Vec2& q : s) box_.extend(q);
+      total += OpenLength(s);
+    }
+    const Vec2 ext = box_.max() - box_.min();
+    const double w = std::max(ext.x(), 0.0), h = std::max(ext.y(), 0.0);
+    // At most about 3n cells and 4n + (segments) entries, whatever the drawing.
+    cell_ = std::max({std::sqrt(w * h / n), std::max(w, h) / n, total / (4.0 * n), 1e-6});
+    nx_ = static_cast<int>(w / cell_) + 1;
+    ny_ = static_cast<int>(h / cell_) + 1;
+    const int64_t cap = 16 + 8 * static_cast<int64_t>(std::sqrt(double(n)));
+    std::vector<std::pair<int, int>> entries;  // (cell, stroke)
+    for (int s = 0; s < n; ++s) {
+      const size_t mark = entries.size();
+      bool big = false;
+      const auto& p = strokes[s];
+      for (size_t k = 0; k + 1 < p.size() && !big; ++k) {
+        const double len = (p[k + 1] - p[k]).norm();
+        const int pieces = static_cast<int>(std::min(1e9, std::ceil(len / cell_))) + 1;
+        if (pieces > cap) {
+          big = true;
+          break;
+        }
+        for (int m = 0; m < pieces && !big; ++m) {
+          const Vec2 u = p[k] + (p[k + 1] - p[k]) * (double(m) / pieces);
+          const Vec2 v = p[k] + (p[k + 1] - p[k]) * (double(m + 1) / pieces);
+          const int x0 = CellX(std::min(u.x(), v.x())), x1 = CellX(std::max(u.x(), v.x()));
+          const int y0 = CellY(std::min(u.y(), v.y())), y1 = CellY(std::max(u.y(), v.y()));
+          for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x) {
+              const int c = y * nx_ + x;
+              if (entries.size() == mark || entries.back() != std::make_pair(c, s))
+                entries.emplace_back(c, s);
+            }
+          big = static_cast<int64_t>(entries.size() - mark) > 4 * cap;
+        }
+      }
+      if (big) {
+        entries.resize(mark);
+        big_.push_back(s);
+      }
+    }
+    start_.assign(size_t(nx_) * ny_ + 1, 0);
+    for (const auto& e : entries) ++start_[e.first + 1];
+    for (size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+    items_.resize(entries.size());
+    std::vector<int> fill(start_.begin(), start_.end() - 1);
+    for (const auto& e : entries) items_[fill[e.first]++] = e.second;
+  }
+
+  /// Calls visit(stroke) for the strokes listed within ring k of `near`'s cells, ring by ring,
+  /// while keep_going(distance) holds, where every stroke not yet visited lies farther than
+  /// `distance` from `near`. A cell lists its strokes in increasing order; visit returns false to
+  /// skip the rest of the cell. Strokes are visited once or more (the caller dedups); the big
+  /// ones are not visited (big()).
+  template <typename Visit, typename KeepGoing>
+  void Rings(const Eigen::AlignedBox2d& near, Visit visit, KeepGoing keep_going) const {
+    const int x0 = CellX(near.min().x()), x1 = CellX(near.max().x());
+    const int y0 = CellY(near.min().y()), y1 = CellY(near.max().y());
+    for (int k = 0;; ++k) {
+      const int ax = x0 - k, bx = x1 + k, ay = y0 - k, by = y1 + k;
+      for (int y = std::max(ay, 0); y <= std::min(by, ny_ - 1); ++y) {
+        const bool edge_row = k == 0 || y == ay || y == by;
+        for (int x = std::max(ax, 0); x <= std::min(bx, nx_ - 1); ++x) {
+          if (!edge_row && x != ax && x != bx) {
+            x = std::max(x, bx - 1);  // skip the inside, visited in earlier rings
+            continue;
+          }
+          const int c = y * nx_ + x;
+          for (int i = start_[c]; i < start_[c + 1]; ++i)
+            if (!visit(items_[i])) break;
+        }
+      }
+      if (ax <= 0 && ay <= 0 && bx >= nx_ - 1 && by >= ny_ - 1) return;  // covered everything
+      if (!keep_going(k * cell_)) return;
+    }
+  }
+  const std::vector<int>& big() const { return big_; }
+
+ private:
+  int CellX(double x) const {
+    return std::clamp(static_cast<int>((x - box_.min().x()) / cell_), 0, nx_ - 1);
+  }
+  int CellY(double y) const {
+    return std::clamp(static_cast<int>((y - box_.min().y()) / cell_), 0, ny_ - 1);
+  }
+
+  Eigen::AlignedBox2d box_;
+  double cell_ = 1.0;
+  int nx_ = 1, ny_ = 1;
+  std::vector<int> start_;  // per cell, its first entry in items_ (CSR)
+  std::vector<int> items_;  // stroke indices
+  std::vector<int> big_;    // strokes listed in no cell
 };
 
 }  // namespace
@@ -403,49 +566,124 @@ Result<MergedOutline> MergeStrokes(const StrokeSet& set, const ContourOptions& o
     return InvalidArgument(
         "nothing drawn: the sketch has no stroke with two or more distinct points");
 
-  std::vector<double> len(strokes.size());
-  for (size_t s = 0; s < strokes.size(); ++s) len[s] = OpenLength(strokes[s]);
-  std::vector<char> used(strokes.size(), 0);
+  if (static_cast<int64_t>(strokes.size()) > options.max_strokes)
+    return ResourceExhausted("the sketch has " + std::to_string(strokes.size()) +
+                             " strokes, over the limit of " + std::to_string(options.max_strokes) +
+                             " (max_strokes)");
+  const int n = static_cast<int>(strokes.size());
+  CancelPoll poll(options.cancel, "stroke merging", 64);
+  std::vector<double> len(n);
+  std::vector<Eigen::AlignedBox2d> boxes(n);
+  double longest = 0.0;
+  for (int s = 0; s < n; ++s) {
+    len[s] = OpenLength(strokes[s]);
+    longest = std::max(longest, len[s]);
+    for (const Vec2& q : strokes[s]) boxes[s].extend(q);
+  }
+  // Seeds: the longest unused stroke first (the lower index on ties).
+  std::vector<int> by_length(n);
+  for (int s = 0; s < n; ++s) by_length[s] = s;
+  std::stable_sort(by_length.begin(), by_length.end(),
+                   [&](int x, int y) { return len[x] > len[y]; });
+  const StrokeGrid grid(strokes);
+  std::vector<char> used(n, 0);
+  std::vector<uint32_t> seen(n, 0);  // stamp of the last search that evaluated the stroke
+  uint32_t search = 0;
   std::vector<Chain> chains;
   const double frac = options.max_gap_fraction;
+  size_t next_seed = 0;
   for (;;) {
-    int seed = -1;
-    for (size_t s = 0; s < strokes.size(); ++s)
-      if (!used[s] && (seed < 0 || len[s] > len[seed])) seed = static_cast<int>(s);
-    if (seed < 0) break;
+    while (next_seed < by_length.size() && used[by_length[next_seed]]) ++next_seed;
+    if (next_seed == by_length.size()) break;
+    const int seed = by_length[next_seed];
     used[seed] = 1;
-    Chain chain{strokes[seed], {ids[seed]}, {}};
+    Chain chain{{}, {ids[seed]}, {}};
+    GrowingChain pts(strokes[seed]);
     for (;;) {
-      const double lc = OpenLength(chain.pts);
+      if (poll.StopNow()) return poll.error();
+      const double lc = pts.length();
+      // Each stroke s is tried at both chain ends and in both directions; the join with the
+      // smallest gap within its closing limit wins (ties: lowest s, then tail before head, then
+      // forward before reversed). BestJoin reads only a window at each end, no wider than
+      // w_max, so a stroke whose bounding box is farther from that window than the best gap
+      // so far cannot win and is not tried.
+      const double w_max = std::min({0.35 * lc, 0.35 * longest, 0.05 * (lc + longest) + 15.0});
+      const double limit_max = frac * (lc + longest);
       int best = -1;
       bool best_head = false, best_rev = false;
       Join best_join;
-      for (size_t s = 0; s < strokes.size(); ++s) {
-        if (used[s]) continue;
+      std::vector<Vec2> window[2];
+      int first[2] = {0, 0};
+      for (int head = 0; head < 2; ++head) window[head] = pts.EndWindow(head, w_max, &first[head]);
+      auto better = [&](const Join& j, int s, int head, int rev) {
+        if (j.gap != best_join.gap) return j.gap < best_join.gap;
+        if (s != best) return s < best;
+        if (head != int(best_head)) return head < int(best_head);
+        return rev < int(best_rev);
+      };
+      auto try_stroke = [&](int s, int head) {
         const double w = std::min({0.35 * lc, 0.35 * len[s], 0.05 * (lc + len[s]) + 15.0});
         const double limit = frac * (lc + len[s]);
-        for (int head = 0; head < 2; ++head) {
-          const Vec2 end = head ? chain.pts.front() : chain.pts.back();
-          for (int rev = 0; rev < 2; ++rev) {
-            const Vec2 sb = rev ? strokes[s].back() : strokes[s].front();
-            if ((end - sb).norm() > limit + 2.0 * w) continue;  // cannot be within reach
-            std::vector<Vec2> a = chain.pts, b = strokes[s];
-            if (head) std::reverse(a.begin(), a.end());
-            if (rev) std::reverse(b.begin(), b.end());
-            Join j = BestJoin(a, b, w);
-            if (j.gap <= limit && j.gap < best_join.gap) {
-              best_join = j, best = static_cast<int>(s), best_head = head, best_rev = rev;
-            }
+        const Vec2 end = head ? pts.front() : pts.back();
+        for (int rev = 0; rev < 2; ++rev) {
+          const Vec2 sb = rev ? strokes[s].back() : strokes[s].front();
+          if ((end - sb).norm() > limit + 2.0 * w) continue;  // cannot be within reach
+          Join j = BestJoin(window[head], HeadWindow(strokes[s], rev, w), w);
+          j.cut_a.i += first[head];
+          if (j.gap <= limit && (best < 0 || better(j, s, head, rev))) {
+            best_join = j, best = s, best_head = head, best_rev = rev;
           }
         }
+      };
+      bool stop = false;
+      for (int head = 0; head < 2 && !stop; ++head) {
+        Eigen::AlignedBox2d near;
+        for (const Vec2& q : window[head]) near.extend(q);
+        ++search;
+        grid.Rings(
+            near,
+            [&](int s) {
+              // Gap 0 (ends that cross) cannot be beaten; a higher index only ties and loses.
+              if (stop || (best >= 0 && best_join.gap == 0.0 && s > best)) return false;
+              if (used[s] || seen[s] == search) return true;
+              seen[s] = search;
+              if (poll.Stop()) {
+                stop = true;
+                return false;
+              }
+              try_stroke(s, head);
+              return true;
+            },
+            [&](double distance) {
+              return !stop && distance < limit_max && (best < 0 || distance < best_join.gap);
+            });
+        for (int s : grid.big()) {
+          if (used[s] || stop) continue;
+          const double lower = BoxDistance(near, boxes[s]);
+          if (lower > limit_max || (best >= 0 && lower > best_join.gap)) continue;
+          if (poll.Stop()) stop = true;
+          try_stroke(s, head);
+        }
       }
+      if (stop) return poll.error();
       if (best < 0) break;
-      std::vector<Vec2> a = chain.pts, b = strokes[best];
-      if (best_head) std::reverse(a.begin(), a.end());
+      // Splice in place: keep the chain up to cut_a, bridge to cut_b, continue along the stroke;
+      // near-duplicate points (under 1e-6 px) are dropped where the two meet.
+      if (best_head) pts.Reverse();
+      std::vector<Vec2> b = strokes[best];
       if (best_rev) std::reverse(b.begin(), b.end());
-      const Vec2 pa = At(a, best_join.cut_a), pb = At(b, best_join.cut_b);
-      chain.pts = Splice(a, best_join.cut_a, b, best_join.cut_b);
-      Clean(chain.pts);
+      const Cut ca = best_join.cut_a, cb = best_join.cut_b;
+      const int na = pts.size();
+      const Vec2 pa = ca.i + 1 >= na ? pts.back() : pts[ca.i] + ca.t * (pts[ca.i + 1] - pts[ca.i]);
+      const Vec2 pb = At(b, cb);
+      while (pts.size() > std::min(ca.i + 1, na)) pts.PopBack();
+      Vec2 raw_last = pts.back();
+      auto append = [&](const Vec2& q) {
+        if ((q - pts.back()).norm() > 1e-6) pts.PushBack(q);
+      };
+      if (ca.i + 1 < na && ca.t > 0.0) append(pa), raw_last = pa;
+      if ((raw_last - pb).norm() > 1e-9) append(pb);
+      for (size_t k = cb.i + 1; k < b.size(); ++k) append(b[k]);
       const std::string names =
           "strokes " + std::to_string(chain.strokes.back()) + " and " + std::to_string(ids[best]);
       if (best_join.crossed) {
@@ -458,6 +696,7 @@ Result<MergedOutline> MergeStrokes(const StrokeSet& set, const ContourOptions& o
       chain.strokes.push_back(ids[best]);
       used[best] = 1;
     }
+    chain.pts = pts.ToVector();
     chains.push_back(std::move(chain));
   }
 

@@ -11,8 +11,10 @@
 namespace rheo::daemon {
 namespace {
 
-Result<sketch::ContourResult> RunSketch(const v1::Sketch& s, const v1::ContourOptions& o) {
-  const sketch::ContourOptions opts = ToSketchOptions(o);
+Result<sketch::ContourResult> RunSketch(const v1::Sketch& s, const v1::ContourOptions& o,
+                                        const CancelToken& cancel) {
+  sketch::ContourOptions opts = ToSketchOptions(o);
+  opts.cancel = cancel;
   switch (s.source_case()) {
     case v1::Sketch::kStrokesJson: return sketch::ContourFromStrokesJson(s.strokes_json(), opts);
     case v1::Sketch::kImage: {
@@ -90,8 +92,9 @@ Status ValidateCreateRequest(const v1::CreateObjectRequest& r) {
 }
 
 Result<v1::ContourReport> ExtractContour(const v1::Sketch& sketch,
-                                         const v1::ContourOptions& options) {
-  auto r = RunSketch(sketch, options);
+                                         const v1::ContourOptions& options,
+                                         const CancelToken& cancel) {
+  auto r = RunSketch(sketch, options, cancel);
   if (!r.ok()) return r.error();
   v1::ContourReport out;
   FillContourReport(*r, &out);
@@ -113,7 +116,7 @@ Status CheckBackgroundImage(const std::string& bytes) {
 }
 
 Result<StoredObject> BuildObject(const v1::CreateObjectRequest& request, const BuildLimits& limits,
-                                 const BuildProgress& progress) {
+                                 const BuildProgress& progress, const CancelToken& cancel) {
   v1::CreateObjectProgress p;
   p.set_stage("contour");
   p.set_fraction(0.0);
@@ -121,7 +124,7 @@ Result<StoredObject> BuildObject(const v1::CreateObjectRequest& request, const B
   if (Status s = CheckBackgroundImage(request.sketch().background_image()); !s.ok())
     return s.error();
 
-  auto contour = RunSketch(request.sketch(), request.contour_options());
+  auto contour = RunSketch(request.sketch(), request.contour_options(), cancel);
   if (!contour.ok()) return contour.error();
   v1::Object object;
   FillContourReport(*contour, object.mutable_contour());
@@ -139,6 +142,7 @@ Result<StoredObject> BuildObject(const v1::CreateObjectRequest& request, const B
   if (rm.pixel_size() > 0) mo.pixel_size = rm.pixel_size();
   mo.max_tets = limits.max_tets;
   mo.max_vertices = limits.max_vertices;
+  mo.cancel = cancel;
   std::optional<Error> stopped;
   mo.progress = [&](std::string_view stage, double fraction) {
     p.set_stage(std::string(stage));

@@ -5,6 +5,7 @@
 #include <optional>
 #include <string>
 
+#include "common/cancel.h"
 #include "common/status.h"
 #include "daemon/store/store.h"
 #include "rheo/v1/objects.pb.h"
@@ -27,12 +28,15 @@ Status ValidateCreateRequest(const rheo::v1::CreateObjectRequest& request);
 /// (INVALID_ARGUMENT or RESOURCE_EXHAUSTED naming background_image); empty is fine.
 Status CheckBackgroundImage(const std::string& bytes);
 
-/// Runs the whole build; the result is ready to store (id and creation time set).
+/// Runs the whole build; the result is ready to store (id and creation time set). `cancel` is
+/// polled inside the sketch and mesh stages' loops (kCancelled, kDeadlineExceeded).
 Result<StoredObject> BuildObject(const rheo::v1::CreateObjectRequest& request,
-                                 const BuildLimits& limits, const BuildProgress& progress);
+                                 const BuildLimits& limits, const BuildProgress& progress,
+                                 const CancelToken& cancel = CancelToken());
 
-/// Only the sketch stage, for previews.
+/// Only the sketch stage, for previews; the same limits and cancellation as BuildObject.
 Result<rheo::v1::ContourReport> ExtractContour(const rheo::v1::Sketch& sketch,
-                                               const rheo::v1::ContourOptions& options);
+                                               const rheo::v1::ContourOptions& options,
+                                               const CancelToken& cancel = CancelToken());
 
 }  // namespace rheo::daemon

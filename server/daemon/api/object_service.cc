@@ -81,10 +81,13 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
   auto job = ctx_.jobs->Submit(
       SteadyDeadline(*context, ctx_.job_timeout),
       [request = *request, limits, store](Job<JobEvent>& job) {
-        auto built = BuildObject(request, limits, [&](const v1::CreateObjectProgress& p) {
-          job.Push(JobEvent::Progress(p));
-          return job.ShouldStop();
-        });
+        auto built = BuildObject(
+            request, limits,
+            [&](const v1::CreateObjectProgress& p) {
+              job.Push(JobEvent::Progress(p));
+              return job.ShouldStop();
+            },
+            job.token());
         if (!built.ok()) {
           job.Push(JobEvent::Failed(built.error()));
           return;
@@ -197,7 +200,9 @@ grpc::Status ObjectServiceImpl::CancelJob(grpc::ServerContext*, const v1::Cancel
   return grpc::Status::OK;
 }
 
-grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext*,
+// The sketch stage on the worker pool, like CreateObject: the same limits, the client's deadline
+// as the job's, and the job cancelled as soon as the client goes away.
+grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext* context,
                                                const v1::ExtractContourRequest* request,
                                                v1::ContourReport* out) {
   if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
@@ -205,10 +210,46 @@ grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext*,
   *check.mutable_sketch() = request->sketch();
   *check.mutable_contour_options() = request->options();
   if (Status s = ValidateCreateRequest(check); !s.ok()) return ToGrpc(s.error());
-  auto r = daemon::ExtractContour(request->sketch(), request->options());
-  if (!r.ok()) return ToGrpc(r.error());
-  *out = std::move(r).value();
-  return grpc::Status::OK;
+  if (ctx_.shutting_down->load())
+    return grpc::Status(grpc::StatusCode::UNAVAILABLE, "shutting down");
+  auto job = ctx_.jobs->Submit(
+      SteadyDeadline(*context, ctx_.job_timeout), [request = *request](Job<JobEvent>& job) {
+        auto r = daemon::ExtractContour(request.sketch(), request.options(), job.token());
+        if (!r.ok()) {
+          job.Push(JobEvent::Failed(r.error()));
+          return;
+        }
+        v1::CreateObjectProgress p;
+        p.set_stage("done");
+        *p.mutable_contour() = std::move(r).value();
+        job.Push(JobEvent::Progress(std::move(p)));
+      });
+  if (!job.ok()) return ToGrpc(job.error());
+  const std::string job_id = (*job)->id();
+  JobEvent ev;
+  bool done = false;
+  while (!done) {
+    if (context->IsCancelled()) {
+      (*job)->Cancel();
+      return grpc::Status(grpc::StatusCode::CANCELLED, "client cancelled " + job_id);
+    }
+    if (ctx_.shutting_down->load()) {
+      (*job)->Cancel();
+      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                          "rheod is shutting down; " + job_id + " was cancelled");
+    }
+    if (!(*job)->Pop(ev, std::chrono::milliseconds(20), done)) continue;
+    if (ev.error) {
+      Error e = *ev.error;
+      e.message = "contour extraction (" + job_id + "): " + e.message;
+      return ToGrpc(e);
+    }
+    if (ev.progress.has_contour()) {
+      *out = std::move(*ev.progress.mutable_contour());
+      return grpc::Status::OK;
+    }
+  }
+  return grpc::Status(grpc::StatusCode::INTERNAL, job_id + " ended without a contour");
 }
 
 grpc::Status ObjectServiceImpl::ListObjects(grpc::ServerContext*,

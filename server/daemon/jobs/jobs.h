@@ -14,6 +14,7 @@
 #include <optional>
 #include <string>
 
+#include "common/cancel.h"
 #include "common/status.h"
 
 namespace rheo::daemon {
@@ -30,6 +31,9 @@ class Job {
   void Cancel() { cancelled_.store(true, std::memory_order_release); }
   bool cancelled() const { return cancelled_.load(std::memory_order_acquire); }
   bool expired() const { return std::chrono::steady_clock::now() > deadline_; }
+  /// Worker side: the token the pure libraries poll inside their loops (this job's cancel flag
+  /// and deadline). Valid while the job lives.
+  CancelToken token() const { return CancelToken(&cancelled_, &Job::Expired, this); }
   /// Worker side: stop as soon as convenient when this returns an error.
   std::optional<Error> ShouldStop() const {
     if (cancelled()) return Error{ErrorCode::kCancelled, "job " + id_ + " was cancelled"};
@@ -65,6 +69,8 @@ class Job {
   }
 
  private:
+  static bool Expired(const void* self) { return static_cast<const Job*>(self)->expired(); }
+
   std::string id_;
   std::chrono::steady_clock::time_point deadline_;
   std::atomic<bool> cancelled_{false};
