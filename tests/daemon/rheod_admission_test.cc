@@ -93,20 +93,6 @@ v1::DaemonStatus Status(RheodProcess& d) {
   return st;
 }
 
-// Ticks per second of the daemon's loop over `window`, from its own tick count and uptime; the
-// loop's late, overrun and skipped ticks in the window go to `detail` for the failure message.
-double TickRate(RheodProcess& d, std::chrono::milliseconds window, std::string* detail) {
-  const v1::DaemonStatus a = Status(d);
-  std::this_thread::sleep_for(window);
-  const v1::DaemonStatus b = Status(d);
-  *detail = "ticks " + std::to_string(b.loop().ticks() - a.loop().ticks()) + " in " +
-            std::to_string(b.uptime_s() - a.uptime_s()) + " s, late " +
-            std::to_string(b.loop().late_ticks() - a.loop().late_ticks()) + ", overruns " +
-            std::to_string(b.loop().overruns() - a.loop().overruns()) + ", skipped " +
-            std::to_string(b.loop().skipped_ticks() - a.loop().skipped_ticks());
-  return static_cast<double>(b.loop().ticks() - a.loop().ticks()) / (b.uptime_s() - a.uptime_s());
-}
-
 TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopKeepsItsRate) {
   RheodProcess d;
   ASSERT_TRUE(d.started()) << d.log();
@@ -122,7 +108,7 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
   EXPECT_LT(so.predicted_tick_us(), Status(d).loop().sim_budget_us());
 
   std::string detail;
-  const double before = TickRate(d, 3s, &detail);
+  const double before = LoopTickRate(d, 3s, &detail);
 
   // Asked for explicitly, the symplectic one does not fit: refused, naming time and budget.
   v1::SceneObject refused;
@@ -166,7 +152,7 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
       EXPECT_EQ(p.value(), 1.0);
     }
   const std::string before_detail = detail;
-  const double after = TickRate(d, 3s, &detail);
+  const double after = LoopTickRate(d, 3s, &detail);
   EXPECT_TRUE(KeepsItsRate(after, before))
       << "before: " << before << " ticks/s (" << before_detail << "); after: " << after
       << " ticks/s (" << detail << ")";
@@ -185,7 +171,7 @@ TEST(RheodAdmission, AnObjectThatKeepsExplodingIsStoppedAndReportedNotRestoredFo
       Add(d, id, v1::INTEGRATOR_SYMPLECTIC_EULER, {{"k_v", 1e5}, {"max_substeps", 1}}, &so);
   ASSERT_TRUE(s.ok()) << s.error_message();
   std::string before_detail;
-  const double before = TickRate(d, 1s, &before_detail);  // while it explodes
+  const double before = LoopTickRate(d, 1s, &before_detail);  // while it explodes
   auto frames = v1::FrameService::NewStub(d.channel());
   grpc::ClientContext fctx;
   SetDeadline(fctx, 20s);
@@ -213,7 +199,7 @@ TEST(RheodAdmission, AnObjectThatKeepsExplodingIsStoppedAndReportedNotRestoredFo
   EXPECT_EQ(st.loop().unstable_objects(), 1u);
   EXPECT_EQ(st.loop().restores(), restores);
   std::string detail;
-  const double after = TickRate(d, 3s, &detail);
+  const double after = LoopTickRate(d, 3s, &detail);
   EXPECT_TRUE(KeepsItsRate(after, before))
       << "before: " << before << " ticks/s (" << before_detail << "); after: " << after
       << " ticks/s (" << detail << ")";

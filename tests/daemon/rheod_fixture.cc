@@ -12,6 +12,8 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "rheo/v1/daemon.grpc.pb.h"
+
 extern char** environ;
 
 namespace rheo::testing {
@@ -182,6 +184,27 @@ RunResult RunProgram(const std::vector<std::string>& args) {
   waitpid(pid, &status, 0);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   return r;
+}
+
+double LoopTickRate(RheodProcess& d, std::chrono::milliseconds window, std::string* detail) {
+  auto stub = v1::DaemonService::NewStub(d.channel());
+  auto status = [&] {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::DaemonStatus st;
+    EXPECT_TRUE(stub->GetStatus(&ctx, {}, &st).ok());
+    return st;
+  };
+  const v1::DaemonStatus a = status();
+  std::this_thread::sleep_for(window);
+  const v1::DaemonStatus b = status();
+  if (detail)
+    *detail = "ticks " + std::to_string(b.loop().ticks() - a.loop().ticks()) + " in " +
+              std::to_string(b.uptime_s() - a.uptime_s()) + " s, late " +
+              std::to_string(b.loop().late_ticks() - a.loop().late_ticks()) + ", overruns " +
+              std::to_string(b.loop().overruns() - a.loop().overruns()) + ", skipped " +
+              std::to_string(b.loop().skipped_ticks() - a.loop().skipped_ticks());
+  return static_cast<double>(b.loop().ticks() - a.loop().ticks()) / (b.uptime_s() - a.uptime_s());
 }
 
 }  // namespace rheo::testing

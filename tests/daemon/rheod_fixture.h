@@ -58,6 +58,11 @@ inline void SetDeadline(grpc::ClientContext& ctx,
   ctx.set_deadline(std::chrono::system_clock::now() + ms);
 }
 
+/// The daemon's loop rate over `window` [ticks/s], from its own tick count and uptime (two
+/// GetStatus calls); `detail`, when given, gets the window's ticks, late, overrun and skipped.
+double LoopTickRate(RheodProcess& d, std::chrono::milliseconds window,
+                    std::string* detail = nullptr);
+
 /// Runs a program and captures stdout, stderr and the exit code.
 struct RunResult {
   int exit_code = -1;

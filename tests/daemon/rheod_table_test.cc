@@ -170,22 +170,6 @@ std::string ReadText(const std::string& path) {
   return ss.str();
 }
 
-v1::DaemonStatus Status(RheodProcess& d) {
-  auto stub = v1::DaemonService::NewStub(d.channel());
-  grpc::ClientContext ctx;
-  SetDeadline(ctx);
-  v1::DaemonStatus st;
-  EXPECT_TRUE(stub->GetStatus(&ctx, {}, &st).ok());
-  return st;
-}
-
-double TickRate(RheodProcess& d, std::chrono::milliseconds window) {
-  const v1::DaemonStatus a = Status(d);
-  std::this_thread::sleep_for(window);
-  const v1::DaemonStatus b = Status(d);
-  return static_cast<double>(b.loop().ticks() - a.loop().ticks()) / (b.uptime_s() - a.uptime_s());
-}
-
 class RheodTable : public ::testing::TestWithParam<const char*> {};
 
 // With each kind of device: the device methods take other paths with each.
@@ -209,7 +193,7 @@ TEST_P(RheodTable, EveryMethodEveryFieldAtItsWorstGetsAClearShortAnswer) {
     }
     ASSERT_TRUE(reader->Finish().ok());
   }
-  const double before = TickRate(d, 2s);
+  const double before = LoopTickRate(d, 2s);
 
   grpc::GenericStub stub(d.channel());
   // Touch one message of each file, so its descriptors are linked in and registered.
@@ -304,7 +288,7 @@ TEST_P(RheodTable, EveryMethodEveryFieldAtItsWorstGetsAClearShortAnswer) {
   std::printf("--device %s: %d methods, %d cases;%s\n", GetParam(), methods, cases,
               codes.str().c_str());
   // Still running, still at rate.
-  const double after = TickRate(d, 3s);
+  const double after = LoopTickRate(d, 3s);
   EXPECT_TRUE(after >= 990.0 || after >= 0.97 * before)
       << "before " << before << " ticks/s, after " << after;
   EXPECT_EQ(d.WaitForExit(0ms), -1) << "rheod exited: " << d.log();

@@ -1,5 +1,6 @@
 // ObjectService: sketches become stored solids on the worker pool, with progress and cancel.
 #include <algorithm>
+#include <optional>
 #include <thread>
 
 #include "common/tet_mesh_io.h"
@@ -34,6 +35,26 @@ grpc::Status ObjectFromMeta(const StoredObject& o, v1::Object* out) {
   if (!out->ParseFromString(o.meta))
     return grpc::Status(grpc::StatusCode::DATA_LOSS, "stored object " + o.id + " is unreadable");
   return grpc::Status::OK;
+}
+
+// The next event of a job its handler watches: false with `stop` set when the client went away
+// or the daemon is shutting down (the job is cancelled), false without when none came within
+// `poll`; `done` turns true with the last event.
+bool NextJobEvent(grpc::ServerContext& context, const DaemonContext& ctx, Job<JobEvent>& job,
+                  std::chrono::milliseconds poll, JobEvent& ev, bool& done,
+                  std::optional<grpc::Status>& stop) {
+  if (context.IsCancelled()) {
+    job.Cancel();
+    stop = grpc::Status(grpc::StatusCode::CANCELLED, "client cancelled " + job.id());
+    return false;
+  }
+  if (ctx.shutting_down->load()) {
+    job.Cancel();
+    stop = grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                        "rheod is shutting down; " + job.id() + " was cancelled");
+    return false;
+  }
+  return job.Pop(ev, poll, done);
 }
 
 }  // namespace
@@ -123,17 +144,12 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
   JobEvent ev;
   bool done = false;
   bool sent_object = false;
+  std::optional<grpc::Status> stop;
   while (!done) {
-    if (context->IsCancelled()) {
-      (*job)->Cancel();
-      return grpc::Status(grpc::StatusCode::CANCELLED, "client cancelled " + job_id);
+    if (!NextJobEvent(*context, ctx_, **job, std::chrono::milliseconds(50), ev, done, stop)) {
+      if (stop) return *stop;
+      continue;
     }
-    if (ctx_.shutting_down->load()) {
-      (*job)->Cancel();
-      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                          "rheod is shutting down; " + job_id + " was cancelled");
-    }
-    if (!(*job)->Pop(ev, std::chrono::milliseconds(50), done)) continue;
     if (ev.error) {
       Error e = *ev.error;
       e.message = job_id + ": " + e.message;
@@ -228,17 +244,12 @@ grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext* context,
   const std::string job_id = (*job)->id();
   JobEvent ev;
   bool done = false;
+  std::optional<grpc::Status> stop;
   while (!done) {
-    if (context->IsCancelled()) {
-      (*job)->Cancel();
-      return grpc::Status(grpc::StatusCode::CANCELLED, "client cancelled " + job_id);
+    if (!NextJobEvent(*context, ctx_, **job, std::chrono::milliseconds(20), ev, done, stop)) {
+      if (stop) return *stop;
+      continue;
     }
-    if (ctx_.shutting_down->load()) {
-      (*job)->Cancel();
-      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                          "rheod is shutting down; " + job_id + " was cancelled");
-    }
-    if (!(*job)->Pop(ev, std::chrono::milliseconds(20), done)) continue;
     if (ev.error) {
       Error e = *ev.error;
       e.message = "contour extraction (" + job_id + "): " + e.message;

@@ -50,6 +50,16 @@ constexpr const char* kSizeSum = "SELECT ifnull(sum" RHEO_ROW_BYTES ", 0) FROM o
 constexpr const char* kRowSize = "SELECT " RHEO_ROW_BYTES " FROM objects WHERE id = ?";
 #undef RHEO_ROW_BYTES
 
+// The first four columns every query of an object selects: id, name, created_ms, meta.
+StoredObject ReadHeader(Stmt& st) {
+  StoredObject o;
+  o.id = st.ColumnBytes(0);
+  o.name = st.ColumnBytes(1);
+  o.created_unix_ms = sqlite3_column_int64(st.get(), 2);
+  o.meta = st.ColumnBytes(3);
+  return o;
+}
+
 std::string Megabytes(uint64_t bytes) {
   char b[32];
   std::snprintf(b, sizeof b, "%.1f MB", static_cast<double>(bytes) / 1e6);
@@ -193,11 +203,7 @@ Result<StoredObject> Store::FindByRequestId(const std::string& request_id) {
   const int rc = sqlite3_step(st.get());
   if (rc == SQLITE_DONE) return NotFound("no object was stored with this request_id");
   if (rc != SQLITE_ROW) return Internal("object store: " + st.Error());
-  StoredObject o;
-  o.id = st.ColumnBytes(0);
-  o.name = st.ColumnBytes(1);
-  o.created_unix_ms = sqlite3_column_int64(st.get(), 2);
-  o.meta = st.ColumnBytes(3);
+  StoredObject o = ReadHeader(st);
   o.request_id = request_id;
   return o;
 }
@@ -217,11 +223,7 @@ Result<StoredObject> Store::Get(const std::string& id, bool with_mesh) {
   int rc = sqlite3_step(st.get());
   if (rc == SQLITE_DONE) return NotFound("no object with id '" + id + "'");
   if (rc != SQLITE_ROW) return Internal("object store: " + st.Error());
-  StoredObject o;
-  o.id = st.ColumnBytes(0);
-  o.name = st.ColumnBytes(1);
-  o.created_unix_ms = sqlite3_column_int64(st.get(), 2);
-  o.meta = st.ColumnBytes(3);
+  StoredObject o = ReadHeader(st);
   o.sketch = st.ColumnBytes(4);
   o.sketch_kind = st.ColumnBytes(5);
   o.background = st.ColumnBytes(6);
@@ -260,12 +262,7 @@ Result<std::vector<StoredObject>> Store::List(uint32_t limit, const std::string&
   std::vector<StoredObject> out;
   int rc;
   while ((rc = sqlite3_step(st.get())) == SQLITE_ROW) {
-    StoredObject o;
-    o.id = st.ColumnBytes(0);
-    o.name = st.ColumnBytes(1);
-    o.created_unix_ms = sqlite3_column_int64(st.get(), 2);
-    o.meta = st.ColumnBytes(3);
-    out.push_back(std::move(o));
+    out.push_back(ReadHeader(st));
   }
   if (rc != SQLITE_DONE) return Internal("object store: " + st.Error());
   if (next_token) next_token->clear();
