@@ -48,8 +48,14 @@ int ShowStatus(const Global& g, bool json) {
         "last good state; see each object's restores in `rheoctl watch`)\n",
         (unsigned long long)l.restores());
   }
-  std::printf("  simulation: %.0f us a tick predicted for the awake scene, of %.0f us allowed\n",
-              l.predicted_sim_us(), l.sim_budget_us());
+  if (l.sim_budget_us() > 0)
+    std::printf("  simulation: %.0f us a tick predicted for the awake scene, of %.0f us allowed\n",
+                l.predicted_sim_us(), l.sim_budget_us());
+  else
+    std::printf(
+        "  simulation: %.0f us a tick predicted for the awake scene (no admission by "
+        "cost)\n",
+        l.predicted_sim_us());
   if (l.unstable_objects() > 0)
     std::printf(
         "  stopped objects: %u (restored 5 times within a second; set new parameters or reset)\n",

@@ -19,6 +19,7 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <limits>
 #include <mutex>
 #include <thread>
 
@@ -194,8 +195,19 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--sim-budget", flags.sim_budget_percent,
                  "share of each tick the scene's simulation may take [%]; a scene change or "
-                 "parameter set predicted to need more is refused")
-      ->check(CLI::Range(5.0, 95.0))
+                 "parameter set predicted to need more is refused. 0: no admission by cost "
+                 "(offline runs, or builds far slower than the loop's rate, e.g. a sanitizer's)")
+      ->check(CLI::Validator(
+          [](std::string& v) -> std::string {
+            double x = -1.0;
+            try {
+              x = std::stod(v);
+            } catch (const std::exception&) {
+            }
+            return x == 0.0 || (x >= 5.0 && x <= 95.0) ? std::string()
+                                                       : "must be 0 (off) or in [5, 95], got " + v;
+          },
+          "0 or [5, 95]"))
       ->capture_default_str();
   app.add_flag("!--no-realtime", flags.realtime, "do not ask for SCHED_FIFO and locked memory");
   try {
@@ -315,12 +327,16 @@ int main(int argc, char** argv) {
   ctx.build_limits.max_tets = flags.max_tets;
   ctx.job_timeout = std::chrono::seconds(flags.job_timeout_s);
   ctx.tick_cost = tick_cost;
-  ctx.sim_budget_ns = flags.sim_budget_percent * 1e-2 * 1e9 / flags.rate_hz;
+  ctx.sim_budget_ns = flags.sim_budget_percent > 0.0
+                          ? flags.sim_budget_percent * 1e-2 * 1e9 / flags.rate_hz
+                          : std::numeric_limits<double>::infinity();
   spdlog::info(
       "tick cost model: {:.2f} ns per element and explicit substep, {:.2f} per implicit substep, "
-      "{:.2f} per CG iteration; the simulation may take {:.0f} us of each tick",
+      "{:.2f} per CG iteration; {}",
       ctx.tick_cost.explicit_ns, ctx.tick_cost.implicit_ns, ctx.tick_cost.cg_ns,
-      ctx.sim_budget_ns * 1e-3);
+      flags.sim_budget_percent > 0.0
+          ? fmt::format("the simulation may take {:.0f} us of each tick", ctx.sim_budget_ns * 1e-3)
+          : std::string("no admission by cost (--sim-budget 0)"));
 
   DaemonServiceImpl daemon_service(ctx);
   FrameServiceImpl frame_service(ctx);

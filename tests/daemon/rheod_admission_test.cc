@@ -94,6 +94,10 @@ v1::DaemonStatus Status(RheodProcess& d) {
 }
 
 TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopKeepsItsRate) {
+  // What fits the tick depends on how fast this build simulates: about 30 times slower under a
+  // sanitizer, where the daemon measures it so and would refuse even the default bean. The
+  // optimised build's stage of scripts/test runs this test.
+  if (kSanitizerBuild) GTEST_SKIP() << "admission by cost is a property of the optimised build";
   RheodProcess d;
   ASSERT_TRUE(d.started()) << d.log();
   // The bean at the daemon's default resolution: symplectic Euler (soft jelly's own) would need

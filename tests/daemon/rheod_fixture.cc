@@ -61,6 +61,14 @@ RheodProcess::RheodProcess(std::vector<std::string> extra_args) {
     owns_data_dir_ = true;
     args.insert(args.end(), {"--data-dir", data_dir_});
   }
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  // A sanitizer build simulates about 30 times slower than the optimised one, and the daemon's
+  // cost model measures exactly that: it would refuse the tests' objects as too slow for the
+  // tick. These builds are for memory and threading errors; they run without admission by cost
+  // unless a test asks for a budget itself.
+  if (std::find(extra_args.begin(), extra_args.end(), "--sim-budget") == extra_args.end())
+    args.insert(args.end(), {"--sim-budget", "0"});
+#endif
   args.insert(args.end(), extra_args.begin(), extra_args.end());
   int pipefd[2];
   if (pipe2(pipefd, O_CLOEXEC) != 0) return;

@@ -14,6 +14,14 @@
 
 namespace rheo::testing {
 
+/// True in a sanitizer build (the daemon's tests then run it with --sim-budget 0).
+constexpr bool kSanitizerBuild =
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    true;
+#else
+    false;
+#endif
+
 /// A running rheod child process. Its stderr is captured; the address is read from the
 /// "listening on" log line, so no fixed ports and no sleeps. `--listen` among the extra
 /// arguments replaces the default 127.0.0.1:0.

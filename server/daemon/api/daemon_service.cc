@@ -1,4 +1,6 @@
 // DaemonService: the daemon's status (loop timing, counts, capabilities).
+#include <cmath>
+
 #include "daemon/api/convert.h"
 #include "daemon/api/services.h"
 
@@ -29,7 +31,8 @@ grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetSta
   l->set_commands_rejected(ctx_.engine->commands_rejected());
   l->set_restores(ctx_.engine->restores());
   l->set_predicted_sim_us(ctx_.scene->predicted_ns() * 1e-3);
-  l->set_sim_budget_us(ctx_.sim_budget_ns * 1e-3);
+  // 0: no admission by cost (--sim-budget 0).
+  l->set_sim_budget_us(std::isfinite(ctx_.sim_budget_ns) ? ctx_.sim_budget_ns * 1e-3 : 0.0);
   l->set_unstable_objects(ctx_.engine->unstable_objects());
   out->set_device(ctx_.device);
   if (ctx_.device_link) out->add_capabilities("device");
