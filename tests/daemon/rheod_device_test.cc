@@ -405,17 +405,20 @@ TEST(RheodDevice, NetworkToolNeedsTheLeaseAndFeelsTheObject) {
   // The device frame's origin sits above the object; move the tool straight down into it, 5 cm
   // (the bean of samples/ yields under 4 cm: 0.25-0.29 N here, 0.14 N under ASan; 5 cm gives
   // 0.47 N).
-  // One feedback per tick answers each input: under sanitizers a tick takes tens of ms, hence
-  // few inputs and a long deadline.
+  // The path follows the loop's ticks (the feedback's stamp), not the inputs: under sanitizers
+  // a tick takes several ms and the stream answers fewer inputs per tick, and a path spread over
+  // more simulated time lets the object yield more (0.1998 N seen so under ASan).
   grpc::ClientContext ctx;
   SetDeadline(ctx, 120s);
   auto stream = dev->ToolStream(&ctx);
   double best = 0.0;
   bool contact = false;
-  for (int i = 0; i <= 240; ++i) {
+  uint64_t first_tick = 0, ticks = 0;
+  for (int i = 0; ticks <= 240 && i < 20000; ++i) {
     v1::ToolInput in;
     in.set_lease_id(lease.lease_id());
-    in.mutable_pose()->mutable_position()->set_y(-0.05 * std::min(1.0, i / 160.0));
+    in.mutable_pose()->mutable_position()->set_y(-0.05 *
+                                                 std::min(1.0, static_cast<double>(ticks) / 160.0));
     in.mutable_pose()->mutable_orientation()->set_w(1.0);
     ASSERT_TRUE(stream->Write(in));
     v1::ToolFeedback fb;
@@ -423,6 +426,8 @@ TEST(RheodDevice, NetworkToolNeedsTheLeaseAndFeelsTheObject) {
       grpc::Status s = stream->Finish();
       FAIL() << "stream ended at input " << i << ": " << s.error_message();
     }
+    if (first_tick == 0) first_tick = fb.stamp().tick();
+    ticks = fb.stamp().tick() - first_tick;
     contact |= fb.in_contact();
     best = std::max(best, fb.wrench().force().y());
   }
