@@ -405,20 +405,20 @@ TEST(RheodDevice, NetworkToolNeedsTheLeaseAndFeelsTheObject) {
   // The device frame's origin sits above the object; move the tool straight down into it, 5 cm
   // (the bean of samples/ yields under 4 cm: 0.25-0.29 N here, 0.14 N under ASan; 5 cm gives
   // 0.47 N).
-  // The path follows the loop's ticks (the feedback's stamp), not the inputs: under sanitizers
-  // a tick takes several ms and the stream answers fewer inputs per tick, and a path spread over
-  // more simulated time lets the object yield more (0.1998 N seen so under ASan).
+  // The path follows simulated time (the feedback's stamp), not the inputs: under sanitizers a
+  // tick takes several ms and the stream answers fewer inputs per tick, and a path spread over
+  // more simulated time lets the object yield more (0.1998 N seen so under ASan). Not the tick
+  // count either: that counts the periods a slow loop skipped, which simulate nothing.
   grpc::ClientContext ctx;
   SetDeadline(ctx, 120s);
   auto stream = dev->ToolStream(&ctx);
   double best = 0.0;
   bool contact = false;
-  uint64_t first_tick = 0, ticks = 0;
-  for (int i = 0; ticks <= 240 && i < 20000; ++i) {
+  double first_time = -1.0, elapsed = 0.0;  // [s] simulated
+  for (int i = 0; elapsed <= 0.240 && i < 20000; ++i) {
     v1::ToolInput in;
     in.set_lease_id(lease.lease_id());
-    in.mutable_pose()->mutable_position()->set_y(-0.05 *
-                                                 std::min(1.0, static_cast<double>(ticks) / 160.0));
+    in.mutable_pose()->mutable_position()->set_y(-0.05 * std::min(1.0, elapsed / 0.160));
     in.mutable_pose()->mutable_orientation()->set_w(1.0);
     ASSERT_TRUE(stream->Write(in));
     v1::ToolFeedback fb;
@@ -426,8 +426,8 @@ TEST(RheodDevice, NetworkToolNeedsTheLeaseAndFeelsTheObject) {
       grpc::Status s = stream->Finish();
       FAIL() << "stream ended at input " << i << ": " << s.error_message();
     }
-    if (first_tick == 0) first_tick = fb.stamp().tick();
-    ticks = fb.stamp().tick() - first_tick;
+    if (first_time < 0.0) first_time = fb.stamp().sim_time();
+    elapsed = fb.stamp().sim_time() - first_time;
     contact |= fb.in_contact();
     best = std::max(best, fb.wrench().force().y());
   }
