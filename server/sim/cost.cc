@@ -8,13 +8,16 @@
 namespace rheo::sim {
 namespace {
 
-// The implicit integrator splits ticks longer than this (sim.cc's kMaxImplicitStep).
-constexpr double kMaxImplicitStep = 5e-3;
 // Iterations counted at the default tolerance, and that tolerance.
 constexpr double kIterationsAtDefault = 8.0;
 constexpr double kDefaultTolerance = 5e-3;
 
 }  // namespace
+
+int64_t ElementCount(const Model& m) {
+  return static_cast<int64_t>(m.num_nodes) + static_cast<int64_t>(m.edges.size()) +
+         static_cast<int64_t>(m.faces.size()) + static_cast<int64_t>(m.tets.size());
+}
 
 int32_t EstimatedCgIterations(const Parameters& p) {
   const double tol = std::clamp(p.cg_tolerance, 1e-300, 1.0);
@@ -27,19 +30,17 @@ TickCost PredictTickCost(const Model& model, const PreparedParameters& prepared,
                          Integrator integrator, double dt, const CostCoefficients& c) {
   const Parameters& p = prepared.params;
   TickCost out;
-  out.elements = static_cast<int64_t>(model.num_nodes) + static_cast<int64_t>(model.edges.size()) +
-                 static_cast<int64_t>(model.faces.size()) + static_cast<int64_t>(model.tets.size());
+  out.elements = ElementCount(model);
   const double n = static_cast<double>(out.elements);
   if (integrator == Integrator::kSymplecticEuler) {
     // As SimObject::Step does: the stability bound's substeps, capped by max_substeps.
-    double k = prepared.h_stable > 0.0 ? std::ceil(dt / prepared.h_stable) : 1e9;
-    k = std::clamp(k, 1.0, 1e9);
+    const double k =
+        prepared.h_stable > 0.0 ? SimObject::RequiredSubsteps(prepared.h_stable, dt) : 1e9;
     out.substeps_capped = k > p.max_substeps;
     out.substeps = static_cast<int32_t>(std::min(k, std::max(1.0, p.max_substeps)));
     out.ns = out.substeps * n * c.explicit_ns;
   } else {
-    out.substeps = std::max(static_cast<int32_t>(p.implicit_substeps),
-                            static_cast<int32_t>(std::ceil(dt / kMaxImplicitStep - 1e-9)));
+    out.substeps = SimObject::ImplicitSubsteps(p, dt);
     out.cg_iterations = EstimatedCgIterations(p);
     out.ns = out.substeps * n * (c.implicit_ns + out.cg_iterations * c.cg_ns);
   }

@@ -31,6 +31,9 @@ struct TickCost {
   double ns = 0.0;               // predicted time of one awake tick [ns]
 };
 
+/// Nodes + edges + faces + tetrahedra: what one pass over an object's elements visits.
+int64_t ElementCount(const Model& model);
+
 /// CG iterations per implicit substep the model counts on: about 8 at the default tolerance of
 /// 5e-3 (the benchmarks measure 1.6-6.4 per tick from 1k to 103k tetrahedra), growing with
 /// log(1/tolerance) as a Jacobi-preconditioned CG does, never above cg_max_iterations.

@@ -366,7 +366,11 @@ ShapeTreatment SimObject::DecideShape(const Parameters& p, double h, std::span<c
 }
 
 int32_t SimObject::RequiredSubsteps(double dt) const {
-  const double k = std::ceil(dt / h_stable_);
+  return RequiredSubsteps(h_stable_, dt);
+}
+
+int32_t SimObject::RequiredSubsteps(double h_stable, double dt) {
+  const double k = std::ceil(dt / h_stable);
   return static_cast<int32_t>(std::clamp(k, 1.0, 1e9));
 }
 

@@ -140,6 +140,10 @@ class SimObject {
   double time() const { return state_.time; }
   /// Explicit substeps per tick of dt that the stability bound asks for.
   int32_t RequiredSubsteps(double dt) const;
+  /// Explicit substeps per tick of dt for a stability bound h_stable [s] (before max_substeps).
+  static int32_t RequiredSubsteps(double h_stable, double dt);
+  /// Implicit substeps per tick of dt with `p`.
+  static int32_t ImplicitSubsteps(const Parameters& p, double dt);
   /// How the implicit integrator treats the shape springs (eqs. 5-6) at substep h (cached per h;
   /// recomputed after parameter changes); with kSplit, shape_implicit_tets() are implicit.
   ShapeTreatment ShapeSpringsTreatment(double h);
@@ -154,8 +158,6 @@ class SimObject {
   void ApplyDensity(double density);
   // The CG's per-coordinate copies of the node masses and fixed flags (mass3, keep3).
   void SyncNodeArrays();
-  // Implicit substeps per tick of dt.
-  static int32_t ImplicitSubsteps(const Parameters& p, double dt);
   // The explicit stability bound on the substep with node masses `mass` [s]; `acc` is scratch
   // (n entries, left zero).
   double StableStep(const Parameters& p, std::span<const double> mass,

@@ -42,10 +42,7 @@ sim::CostCoefficients MeasureTickCost() {
   auto run = [&](sim::Integrator integrator, const sim::Parameters& params) -> double {
     auto object = sim::SimObject::Create(*mesh, params, integrator);
     if (!object.ok()) return 0.0;
-    const sim::Model& m = (*object)->model();
-    const int64_t elements = m.num_nodes + static_cast<int64_t>(m.edges.size()) +
-                             static_cast<int64_t>(m.faces.size()) +
-                             static_cast<int64_t>(m.tets.size());
+    const int64_t elements = sim::ElementCount((*object)->model());
     int32_t substeps = 1;
     (void)FastestTickNs(**object, 5, kDt, elements, &substeps);  // warm the caches
     return FastestTickNs(**object, kTicks, kDt, elements, &substeps);
