@@ -25,6 +25,7 @@
 
 #include "daemon/api/decode_errors.h"
 #include "daemon/api/services.h"
+#include "daemon/web/gateway.h"
 #include "daemon/loop/engine.h"
 #include "daemon/loop/frame_hub.h"
 #include "daemon/loop/tick_cost.h"
@@ -74,6 +75,9 @@ struct Flags {
   int64_t max_tets = 500000;
   double sim_budget_percent = 60.0;
   int64_t store_quota_mb = 4096;
+  std::string http = "127.0.0.1:8080";  // the studio's gateway, or "off"
+  std::string web_root;                 // "": clients/web of the source tree
+  int http_connections = 256;
 };
 
 // Holds an exclusive lock on the data directory so two daemons never share one store.
@@ -210,6 +214,15 @@ int main(int argc, char** argv) {
           "0 or [5, 95]"))
       ->capture_default_str();
   app.add_flag("!--no-realtime", flags.realtime, "do not ask for SCHED_FIFO and locked memory");
+  app.add_option("--http", flags.http,
+                 "the browser studio and its WebSocket: host:port (port 0 = any free) or off")
+      ->capture_default_str();
+  app.add_option("--web-root", flags.web_root,
+                 "the studio's files (default: clients/web of the source tree)");
+  app.add_option("--http-connections", flags.http_connections,
+                 "most WebSocket connections (studio pages and viewers) at once")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -385,6 +398,44 @@ int main(int argc, char** argv) {
         "authentication, in plaintext; listen on 127.0.0.1 unless this network is trusted",
         flags.listen);
 
+  // The studio: its files and the WebSocket bridge onto this server's own API (in-process, so
+  // every limit, validation and status code is the gRPC one).
+  std::unique_ptr<rheo::daemon::web::Gateway> gateway;
+  if (flags.http != "off") {
+    rheo::daemon::web::GatewayOptions web;
+    web.address = flags.http;
+    web.web_root = flags.web_root.empty() ? std::filesystem::path(RHEO_SOURCE_WEB)
+                                          : std::filesystem::path(flags.web_root);
+    web.max_connections = flags.http_connections;
+    grpc::ChannelArguments channel_args;
+    channel_args.SetMaxReceiveMessageSize(64 << 20);
+    gateway = std::make_unique<rheo::daemon::web::Gateway>(
+        web, server->InProcessChannel(channel_args));
+    if (grpc::Status s = gateway->Start(); !s.ok()) {
+      spdlog::error("{}", s.error_message());
+      server->Shutdown(std::chrono::system_clock::now());
+      hub.Stop();
+      engine.Stop();
+      return 1;
+    }
+    if (!std::filesystem::exists(web.web_root / "index.html"))
+      spdlog::warn("the studio's files are not in {} (no index.html); pass --web-root clients/web",
+                   web.web_root.string());
+    else if (!std::filesystem::exists(web.web_root / "node_modules" / "three"))
+      spdlog::warn("three.js is not installed in {}: run `npm ci` there (scripts/install-deps "
+                   "does), or the 3D view will not load",
+                   web.web_root.string());
+    std::string web_host = flags.http.substr(0, flags.http.rfind(':'));
+    spdlog::info("studio at http://{}:{}/ (watch-only viewers: http://{}:{}/?view)", web_host,
+                 gateway->port(), web_host, gateway->port());
+    if (!IsLoopbackListen(flags.http))
+      spdlog::warn(
+          "--http {} is not a loopback address: the studio (and through it the whole API) is "
+          "open to anyone who can reach this port; serve it on 127.0.0.1 unless this network "
+          "is trusted",
+          flags.http);
+  }
+
   // Shutdown, in the safe order and bounded: the device to minimum tension first, then the mesh
   // jobs are cancelled, the server and the loop stop. A job or a handler that does not stop in
   // time is not waited for: past kHardStop the process leaves anyway (the device is already at
@@ -416,6 +467,7 @@ int main(int argc, char** argv) {
       std::_Exit(0);
     });
     jobs.CancelAll();  // running mesh jobs are asked to stop
+    if (gateway) gateway->Stop();  // studio pages: their calls cancelled, connections closed
     server->GetHealthCheckService()->SetServingStatus(false);
     hub.Stop();  // open frame streams end with UNAVAILABLE
     server->Shutdown(std::chrono::system_clock::now() + kServerGrace);

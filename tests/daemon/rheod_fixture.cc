@@ -53,6 +53,9 @@ RheodProcess::RheodProcess(std::vector<std::string> extra_args) {
   std::vector<std::string> args = {RHEOD_PATH, "--log-level", "debug"};
   if (std::find(extra_args.begin(), extra_args.end(), "--listen") == extra_args.end())
     args.insert(args.end(), {"--listen", "127.0.0.1:0"});
+  auto http = std::find(extra_args.begin(), extra_args.end(), "--http");
+  const bool http_on = http == extra_args.end() || http + 1 == extra_args.end() || *(http + 1) != "off";
+  if (http == extra_args.end()) args.insert(args.end(), {"--http", "127.0.0.1:0"});
   auto given = std::find(extra_args.begin(), extra_args.end(), "--data-dir");
   if (given != extra_args.end() && given + 1 != extra_args.end()) {
     data_dir_ = *(given + 1);  // the caller's: not removed afterwards
@@ -106,6 +109,12 @@ RheodProcess::RheodProcess(std::vector<std::string> extra_args) {
     size_t start = at + std::string("listening on ").size();
     size_t end = l.find_first_not_of("0123456789.:", start);
     address_ = l.substr(start, end - start);
+  }
+  if (http_on && !address_.empty() && WaitForLog("studio at http://", std::chrono::seconds(10))) {
+    l = log();
+    at = l.find("studio at http://");
+    size_t colon = l.find(':', at + std::string("studio at http://").size());
+    if (colon != std::string::npos) http_port_ = std::atoi(l.c_str() + colon + 1);
   }
 }
 

@@ -32,6 +32,8 @@ class RheodProcess {
 
   bool started() const { return !address_.empty(); }
   const std::string& address() const { return address_; }
+  /// The studio gateway's port (--http 127.0.0.1:0 unless the test passes --http), 0 if off.
+  int http_port() const { return http_port_; }
   const std::string& data_dir() const { return data_dir_; }
   /// The child's process id (-1 once it exited and was reaped).
   int pid() const { return pid_; }
@@ -53,6 +55,7 @@ class RheodProcess {
   std::string data_dir_;
   bool owns_data_dir_ = false;
   std::string address_;
+  int http_port_ = 0;
   std::thread reader_;
   mutable std::mutex mutex_;
   std::condition_variable cv_;

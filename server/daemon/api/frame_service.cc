@@ -1,6 +1,8 @@
 // FrameService: the loop's frames at each client's own rate (topology once, then positions).
 #include <google/protobuf/util/time_util.h>
 
+#include <algorithm>
+#include <cmath>
 #include <thread>
 
 #include "daemon/api/convert.h"
@@ -20,6 +22,35 @@ double EnclosedVolume(const float* xyz, uint32_t vertex_count,
   for (size_t t = 0; t + 2 < triangles.size(); t += 3)
     v += at(triangles[t]).dot(at(triangles[t + 1]).cross(at(triangles[t + 2])));
   return v / 6.0;
+}
+
+// Positions as 16-bit fractions of the object's bounding box (ObjectState.positions_q).
+void Quantize(const float* xyz, uint32_t vertex_count, v1::ObjectState* os) {
+  float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+  for (uint32_t i = 0; i < vertex_count; ++i)
+    for (int a = 0; a < 3; ++a) {
+      const float v = xyz[3 * i + a];
+      if (i == 0 || v < lo[a]) lo[a] = v;
+      if (i == 0 || v > hi[a]) hi[a] = v;
+    }
+  auto set = [](v1::Vec3* v, const float* c) {
+    v->set_x(c[0]);
+    v->set_y(c[1]);
+    v->set_z(c[2]);
+  };
+  set(os->mutable_bounds_min(), lo);
+  set(os->mutable_bounds_max(), hi);
+  std::string* out = os->mutable_positions_q();
+  out->resize(6u * vertex_count);
+  auto* bytes = reinterpret_cast<unsigned char*>(out->data());
+  for (uint32_t i = 0; i < 3u * vertex_count; ++i) {
+    const int a = static_cast<int>(i % 3);
+    const float span = hi[a] - lo[a];
+    const float t = span > 0.0f ? (xyz[i] - lo[a]) / span : 0.0f;
+    const auto q = static_cast<uint16_t>(std::lround(std::clamp(t, 0.0f, 1.0f) * 65535.0f));
+    bytes[2 * i] = static_cast<unsigned char>(q & 0xff);
+    bytes[2 * i + 1] = static_cast<unsigned char>(q >> 8);
+  }
 }
 
 grpc::Status ShuttingDown() {
@@ -69,6 +100,8 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
     frame.mutable_stamp()->set_sim_time(f.sim_time);
     *frame.mutable_stamp()->mutable_wall_time() =
         google::protobuf::util::TimeUtil::GetCurrentTime();
+    *frame.mutable_stamp()->mutable_published() =
+        google::protobuf::util::TimeUtil::NanosecondsToTimestamp(f.published_unix_ns);
     frame.set_paused(f.paused);
     frame.set_topology_revision(f.scene_revision);
     const bool send_topology = f.scene_revision != revision_sent;
@@ -92,7 +125,10 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
       os->set_unstable(fo.unstable);
       const float* p = f.positions.data() + 3u * fo.first;
       os->set_volume(EnclosedVolume(p, fo.vertex_count, entry->triangles));
-      if (request->positions()) os->mutable_positions()->Add(p, p + 3u * fo.vertex_count);
+      if (request->positions() && request->quantized())
+        Quantize(p, fo.vertex_count, os);
+      else if (request->positions())
+        os->mutable_positions()->Add(p, p + 3u * fo.vertex_count);
     }
     if (f.tool.present)
       FillToolState(f.tool, ctx_.leases ? ctx_.leases->Holder().first : std::string(),

@@ -1,5 +1,7 @@
 #include "daemon/loop/engine.h"
 
+#include <chrono>
+
 #include <thread>
 
 namespace rheo::daemon {
@@ -205,6 +207,9 @@ void Engine::Tick(const rt::TickInfo& info) {
                                               slots_[i].unstable};
     first += static_cast<uint32_t>(x.size());
   }
+  f.published_unix_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                          std::chrono::system_clock::now().time_since_epoch())
+                          .count();  // a vDSO clock read: no system call, no allocation
   frames_.Publish();
   // Acknowledge only now, so a caller that waited sees the tick's effects (time, frame) too.
   applied_seq_.store(last_applied_seq_, std::memory_order_release);
