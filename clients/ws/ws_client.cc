@@ -5,7 +5,6 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
-
 #include <optional>
 
 namespace rheo::ws {
@@ -92,8 +91,7 @@ bool Client::Read(Message* out, std::chrono::milliseconds timeout) {
   }
   d.ioc.restart();
   const auto until = std::chrono::steady_clock::now() + timeout;
-  while (!d.read_result && std::chrono::steady_clock::now() < until)
-    d.ioc.run_one_until(until);
+  while (!d.read_result && std::chrono::steady_clock::now() < until) d.ioc.run_one_until(until);
   if (!d.read_result) {
     error_ = "timed out";
     return false;  // the read stays pending: the next Read continues it

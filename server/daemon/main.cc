@@ -25,10 +25,10 @@
 
 #include "daemon/api/decode_errors.h"
 #include "daemon/api/services.h"
-#include "daemon/web/gateway.h"
 #include "daemon/loop/engine.h"
 #include "daemon/loop/frame_hub.h"
 #include "daemon/loop/tick_cost.h"
+#include "daemon/web/gateway.h"
 
 #ifndef RHEO_VERSION
 #define RHEO_VERSION "0.0.0"
@@ -409,8 +409,8 @@ int main(int argc, char** argv) {
     web.max_connections = flags.http_connections;
     grpc::ChannelArguments channel_args;
     channel_args.SetMaxReceiveMessageSize(64 << 20);
-    gateway = std::make_unique<rheo::daemon::web::Gateway>(
-        web, server->InProcessChannel(channel_args));
+    gateway =
+        std::make_unique<rheo::daemon::web::Gateway>(web, server->InProcessChannel(channel_args));
     if (grpc::Status s = gateway->Start(); !s.ok()) {
       spdlog::error("{}", s.error_message());
       server->Shutdown(std::chrono::system_clock::now());
@@ -422,9 +422,10 @@ int main(int argc, char** argv) {
       spdlog::warn("the studio's files are not in {} (no index.html); pass --web-root clients/web",
                    web.web_root.string());
     else if (!std::filesystem::exists(web.web_root / "node_modules" / "three"))
-      spdlog::warn("three.js is not installed in {}: run `npm ci` there (scripts/install-deps "
-                   "does), or the 3D view will not load",
-                   web.web_root.string());
+      spdlog::warn(
+          "three.js is not installed in {}: run `npm ci` there (scripts/install-deps "
+          "does), or the 3D view will not load",
+          web.web_root.string());
     std::string web_host = flags.http.substr(0, flags.http.rfind(':'));
     spdlog::info("studio at http://{}:{}/ (watch-only viewers: http://{}:{}/?view)", web_host,
                  gateway->port(), web_host, gateway->port());
@@ -466,7 +467,7 @@ int main(int argc, char** argv) {
       spdlog::default_logger()->flush();
       std::_Exit(0);
     });
-    jobs.CancelAll();  // running mesh jobs are asked to stop
+    jobs.CancelAll();              // running mesh jobs are asked to stop
     if (gateway) gateway->Stop();  // studio pages: their calls cancelled, connections closed
     server->GetHealthCheckService()->SetServingStatus(false);
     hub.Stop();  // open frame streams end with UNAVAILABLE

@@ -54,7 +54,8 @@ RheodProcess::RheodProcess(std::vector<std::string> extra_args) {
   if (std::find(extra_args.begin(), extra_args.end(), "--listen") == extra_args.end())
     args.insert(args.end(), {"--listen", "127.0.0.1:0"});
   auto http = std::find(extra_args.begin(), extra_args.end(), "--http");
-  const bool http_on = http == extra_args.end() || http + 1 == extra_args.end() || *(http + 1) != "off";
+  const bool http_on =
+      http == extra_args.end() || http + 1 == extra_args.end() || *(http + 1) != "off";
   if (http == extra_args.end()) args.insert(args.end(), {"--http", "127.0.0.1:0"});
   auto given = std::find(extra_args.begin(), extra_args.end(), "--data-dir");
   if (given != extra_args.end() && given + 1 != extra_args.end()) {

@@ -357,15 +357,26 @@ std::vector<int> ListeningPorts(int pid) {
   return ports;
 }
 
-TEST(RheodStartup, PortZeroOpensExactlyTheOneLoggedPort) {
+TEST(RheodStartup, PortZeroOpensExactlyTheLoggedPorts) {
+  // gRPC and the studio's gateway, each on the port its log line names, and nothing else.
   RheodProcess d;
   ASSERT_TRUE(d.started()) << d.log();
   const int logged = std::stoi(d.address().substr(d.address().rfind(':') + 1));
-  const std::vector<int> ports = ListeningPorts(d.pid());
+  ASSERT_GT(d.http_port(), 0) << d.log();
+  std::vector<int> ports = ListeningPorts(d.pid());
+  std::sort(ports.begin(), ports.end());
   std::string listed;
   for (int p : ports) listed += std::to_string(p) + " ";
-  ASSERT_EQ(ports.size(), 1u) << "listening ports: " << listed << "; logged " << logged;
-  EXPECT_EQ(ports[0], logged);
+  std::vector<int> expected = {logged, d.http_port()};
+  std::sort(expected.begin(), expected.end());
+  EXPECT_EQ(ports, expected) << "listening ports: " << listed << "; logged " << logged << " and "
+                             << d.http_port();
+  // With the studio off, only the gRPC port.
+  RheodProcess off({"--http", "off"});
+  ASSERT_TRUE(off.started()) << off.log();
+  const std::vector<int> only = ListeningPorts(off.pid());
+  ASSERT_EQ(only.size(), 1u);
+  EXPECT_EQ(only[0], std::stoi(off.address().substr(off.address().rfind(':') + 1)));
 }
 
 TEST(RheodStartup, NonLoopbackListenWarnsWhatIsExposed) {

@@ -37,7 +37,8 @@ class Rpc {
   ws::Client& client() { return *client_; }
 
   void Open(uint32_t id, const std::string& method, const json& request) {
-    ASSERT_TRUE(client_->SendText(json{{"id", id}, {"method", method}, {"request", request}}.dump()));
+    ASSERT_TRUE(
+        client_->SendText(json{{"id", id}, {"method", method}, {"request", request}}.dump()));
   }
   void Send(const json& j) { ASSERT_TRUE(client_->SendText(j.dump())); }
 
@@ -99,11 +100,13 @@ json CreateDiskRequest(bool add) {
               {"addToScene", add}};
 }
 
-int Code(const Rpc::Result& r) { return r.status.value("code", -1); }
+int Code(const Rpc::Result& r) {
+  return r.status.value("code", -1);
+}
 
 TEST(RheodWeb, ServesTheStudioFilesAndRefusesPathsOutsideIt) {
-  const auto root = std::filesystem::temp_directory_path() /
-                    ("rheo-web-root-" + std::to_string(::getpid()));
+  const auto root =
+      std::filesystem::temp_directory_path() / ("rheo-web-root-" + std::to_string(::getpid()));
   std::filesystem::create_directories(root / "js");
   std::filesystem::create_directories(root / "node_modules/three/build");
   std::filesystem::create_directories(root / "node_modules/other");
@@ -127,9 +130,9 @@ TEST(RheodWeb, ServesTheStudioFilesAndRefusesPathsOutsideIt) {
   EXPECT_EQ(body, "export const THREE = 1;");
   EXPECT_EQ(ws::HttpRequest("127.0.0.1", d.http_port(), "HEAD", "/js/main.js", &body), 200);
   // Refused: outside the folder, other npm packages, missing files, other methods.
-  for (const char* bad : {"/../index.html", "/js/../../etc/passwd", "/%2e%2e/index.html",
-                          "/vendor/other/secret.js", "/node_modules/other/secret.js",
-                          "/js//main.js", "/js/%00main.js", "/js/%zz"})
+  for (const char* bad :
+       {"/../index.html", "/js/../../etc/passwd", "/%2e%2e/index.html", "/vendor/other/secret.js",
+        "/node_modules/other/secret.js", "/js//main.js", "/js/%00main.js", "/js/%zz"})
     EXPECT_EQ(ws::HttpRequest("127.0.0.1", d.http_port(), "GET", bad, &body), 400) << bad;
   EXPECT_EQ(ws::HttpRequest("127.0.0.1", d.http_port(), "GET", "/nothing.js", &body), 404);
   EXPECT_NE(body.find("no such file"), std::string::npos);
@@ -188,7 +191,9 @@ TEST(RheodWeb, UnaryCallsCarryTheApiAndItsStatusCodesUnchanged) {
   }
 
   // Binary: the protobuf bytes behind the call's id.
-  rpc.Send({{"id", 4}, {"method", "rheo.v1.DaemonService/GetStatus"}, {"request", json::object()},
+  rpc.Send({{"id", 4},
+            {"method", "rheo.v1.DaemonService/GetStatus"},
+            {"request", json::object()},
             {"binary", true}});
   auto bin = rpc.Wait(4);
   EXPECT_EQ(Code(bin), 0);
@@ -208,7 +213,7 @@ TEST(RheodWeb, MalformedMessagesAreAnsweredInWordsAndTheConnectionStaysUsable) {
   ASSERT_TRUE(rpc.ok());
   struct Case {
     std::string text;
-    uint32_t id;       // the id the answer carries
+    uint32_t id;  // the id the answer carries
     int code;
     std::string words;  // part of the message
   };
@@ -224,8 +229,7 @@ TEST(RheodWeb, MalformedMessagesAreAnsweredInWordsAndTheConnectionStaysUsable) {
       {R"({"id":7,"method":""})", 7, 3, "\"method\" must be"},
       {R"({"id":7,"method":5})", 7, 3, "\"method\" must be"},
       {R"({"id":7,"method":"rheo.v1.Nope/Nothing"})", 7, 12, "SceneService: "},
-      {R"({"id":7,"method":"rheo.v1.DaemonService/GetStatus","request":[1]})", 7, 3,
-       "JSON object"},
+      {R"({"id":7,"method":"rheo.v1.DaemonService/GetStatus","request":[1]})", 7, 3, "JSON object"},
       {R"({"id":7,"method":"rheo.v1.DaemonService/GetStatus","extra":1})", 7, 3,
        "unknown field \"extra\""},
       {R"({"id":7,"method":"rheo.v1.DaemonService/GetStatus","binary":"yes"})", 7, 3,
@@ -235,8 +239,8 @@ TEST(RheodWeb, MalformedMessagesAreAnsweredInWordsAndTheConnectionStaysUsable) {
       {R"({"id":7,"method":"rheo.v1.ObjectService/GetObject","request":{"id":5}})", 7, 3,
        "rheo.v1.GetObjectRequest"},
       {R"({"id":7,"method":"rheo.v1.DeviceService/ToolStream"})", 7, 3, "client stream"},
-      {R"({"id":7,"method":"rheo.v1.DeviceService/ToolStream","stream":true,"request":{}})", 7,
-       3, "as writes"},
+      {R"({"id":7,"method":"rheo.v1.DeviceService/ToolStream","stream":true,"request":{}})", 7, 3,
+       "as writes"},
       {R"({"id":9,"write":{}})", 9, 5, "no open call 9"},
       {R"({"id":9,"end":true})", 9, 5, "no open call 9"},
       {R"({"id":9,"cancel":true})", 9, 5, "no open call 9"},
@@ -282,8 +286,8 @@ TEST(RheodWeb, StreamsProgressAndQuantisedFramesAndCancels) {
   EXPECT_GT(instance, 0);
 
   // An open outline: refused with the sketch stage's words, nothing stored.
-  json open_line = {{"width", 400}, {"height", 400},
-                    {"strokes", {{{10, 10}, {200, 10}, {390, 200}}}}};
+  json open_line = {
+      {"width", 400}, {"height", 400}, {"strokes", {{{10, 10}, {200, 10}, {390, 200}}}}};
   auto refused = rpc.Call(2, "rheo.v1.ObjectService/CreateObject",
                           {{"name", "line"}, {"sketch", {{"strokesJson", open_line.dump()}}}});
   EXPECT_EQ(refused.status["name"], "INVALID_ARGUMENT") << refused.status;
@@ -296,8 +300,9 @@ TEST(RheodWeb, StreamsProgressAndQuantisedFramesAndCancels) {
             0);
   auto floats = rpc.Call(5, "rheo.v1.FrameService/WatchFrames",
                          {{"rateHz", 30}, {"maxFrames", 1}, {"positions", true}});
-  auto quant = rpc.Call(6, "rheo.v1.FrameService/WatchFrames",
-                        {{"rateHz", 30}, {"maxFrames", 1}, {"positions", true}, {"quantized", true}});
+  auto quant =
+      rpc.Call(6, "rheo.v1.FrameService/WatchFrames",
+               {{"rateHz", 30}, {"maxFrames", 1}, {"positions", true}, {"quantized", true}});
   ASSERT_EQ(Code(floats), 0);
   ASSERT_EQ(Code(quant), 0);
   ASSERT_EQ(floats.messages.size(), 1u);
@@ -440,9 +445,9 @@ TEST(RheodWeb, HttpOffAndABusyPortAreClear) {
   EXPECT_EQ(off.log().find("studio at"), std::string::npos);
   RheodProcess first;
   ASSERT_TRUE(first.started());
-  RunResult r = RunProgram({RHEOD_PATH, "--listen", "127.0.0.1:0", "--data-dir",
-                            first.data_dir() + "-second", "--http",
-                            "127.0.0.1:" + std::to_string(first.http_port())});
+  RunResult r =
+      RunProgram({RHEOD_PATH, "--listen", "127.0.0.1:0", "--data-dir", first.data_dir() + "-second",
+                  "--http", "127.0.0.1:" + std::to_string(first.http_port())});
   std::filesystem::remove_all(first.data_dir() + "-second");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("cannot serve the studio on"), std::string::npos) << r.err;

@@ -1,7 +1,6 @@
 #include "daemon/loop/engine.h"
 
 #include <chrono>
-
 #include <thread>
 
 namespace rheo::daemon {
@@ -208,8 +207,8 @@ void Engine::Tick(const rt::TickInfo& info) {
     first += static_cast<uint32_t>(x.size());
   }
   f.published_unix_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                          std::chrono::system_clock::now().time_since_epoch())
-                          .count();  // a vDSO clock read: no system call, no allocation
+                            std::chrono::system_clock::now().time_since_epoch())
+                            .count();  // a vDSO clock read: no system call, no allocation
   frames_.Publish();
   // Acknowledge only now, so a caller that waited sees the tick's effects (time, frame) too.
   applied_seq_.store(last_applied_seq_, std::memory_order_release);

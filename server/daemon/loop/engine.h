@@ -142,7 +142,7 @@ struct FrameObject {
 /// What the loop publishes every tick. Preallocated; the loop fills it without allocating.
 struct LoopFrame {
   uint64_t tick = 0;
-  double sim_time = 0.0;  // [s]
+  double sim_time = 0.0;          // [s]
   int64_t published_unix_ns = 0;  // wall clock when the loop published it (for latency)
   bool paused = false;
   int64_t work_ns = 0;  // time spent in the previous tick [ns]

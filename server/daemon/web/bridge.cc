@@ -102,9 +102,9 @@ grpc::Status Bridge::BinaryToJson(const pb::Descriptor* type, const std::string&
   options.always_print_primitive_fields = true;
   auto status = pb::util::MessageToJsonString(*m, json, options);
   if (!status.ok())
-    return grpc::Status(grpc::StatusCode::INTERNAL, "cannot write " + type->full_name() +
-                                                        " as JSON: " +
-                                                        std::string(status.message()));
+    return grpc::Status(
+        grpc::StatusCode::INTERNAL,
+        "cannot write " + type->full_name() + " as JSON: " + std::string(status.message()));
   return grpc::Status::OK;
 }
 
@@ -181,7 +181,9 @@ void Call::WritesDone() {
   StartNextWriteLocked();
 }
 
-void Call::Cancel() { context_.TryCancel(); }
+void Call::Cancel() {
+  context_.TryCancel();
+}
 
 void Call::Fail(grpc::Status status) {
   {

@@ -15,10 +15,11 @@ grpc::Status ParseTextMessage(std::string_view text, ClientMessage* out) {
   *out = ClientMessage{};
   nlohmann::json j = nlohmann::json::parse(text.begin(), text.end(), nullptr, false);
   if (j.is_discarded())
-    return Bad("the message is not JSON; send one JSON object per WebSocket text message, e.g. "
-               "{\"id\":1,\"method\":\"rheo.v1.DaemonService/GetStatus\",\"request\":{}}");
-  if (!j.is_object()) return Bad("the message must be a JSON object, not " +
-                                 std::string(j.type_name()));
+    return Bad(
+        "the message is not JSON; send one JSON object per WebSocket text message, e.g. "
+        "{\"id\":1,\"method\":\"rheo.v1.DaemonService/GetStatus\",\"request\":{}}");
+  if (!j.is_object())
+    return Bad("the message must be a JSON object, not " + std::string(j.type_name()));
   auto id = j.find("id");
   if (id == j.end()) return Bad("the message has no \"id\" (a positive integer naming the call)");
   if (!id->is_number_unsigned() || id->get<uint64_t>() == 0 || id->get<uint64_t>() > kMaxCallId)
@@ -29,8 +30,9 @@ grpc::Status ParseTextMessage(std::string_view text, ClientMessage* out) {
   int kinds = 0;
   for (const char* k : {"method", "write", "end", "cancel"}) kinds += j.contains(k) ? 1 : 0;
   if (kinds != 1)
-    return Bad("the message must have exactly one of \"method\" (open a call), \"write\", "
-               "\"end\" or \"cancel\"");
+    return Bad(
+        "the message must have exactly one of \"method\" (open a call), \"write\", "
+        "\"end\" or \"cancel\"");
   auto flag = [&](const char* name, bool* value) -> grpc::Status {
     auto it = j.find(name);
     if (it == j.end()) return grpc::Status::OK;
@@ -47,15 +49,15 @@ grpc::Status ParseTextMessage(std::string_view text, ClientMessage* out) {
     if (auto s = flag("binary", &out->binary); !s.ok()) return s;
     if (auto r = j.find("request"); r != j.end()) {
       if (out->stream)
-        return Bad("a call opened with \"stream\": true sends its requests as writes, not as "
-                   "\"request\"");
+        return Bad(
+            "a call opened with \"stream\": true sends its requests as writes, not as "
+            "\"request\"");
       if (!r->is_object()) return Bad("\"request\" must be a JSON object (the request message)");
       out->has_payload = true;
       out->payload = r->dump();
     }
     for (auto& [key, value] : j.items())
-      if (key != "id" && key != "method" && key != "stream" && key != "binary" &&
-          key != "request")
+      if (key != "id" && key != "method" && key != "stream" && key != "binary" && key != "request")
         return Bad("unknown field \"" + key + "\" in a call's opening message");
     return grpc::Status::OK;
   }
@@ -85,8 +87,8 @@ grpc::Status ParseBinaryMessage(std::string_view bytes, ClientMessage* out) {
   uint32_t id = 0;
   for (int i = 3; i >= 0; --i) id = (id << 8) | static_cast<unsigned char>(bytes[i]);
   if (id == 0 || id > kMaxCallId)
-    return Bad("a binary message's id must be from 1 to " + std::to_string(kMaxCallId) +
-               ", got " + std::to_string(id));
+    return Bad("a binary message's id must be from 1 to " + std::to_string(kMaxCallId) + ", got " +
+               std::to_string(id));
   out->id = id;
   out->kind = ClientMessage::Kind::kWrite;
   out->has_payload = true;

@@ -29,7 +29,7 @@ struct ClientMessage {
   bool binary = false;       // kOpen: responses as binary messages
   bool has_payload = false;  // kOpen with "request", or kWrite
   bool payload_is_binary = false;
-  std::string payload;       // JSON text of the message, or its protobuf bytes (binary write)
+  std::string payload;  // JSON text of the message, or its protobuf bytes (binary write)
 };
 
 /// Largest call id (ids are positive and fit a JavaScript number exactly).

@@ -1,5 +1,8 @@
 #include "daemon/web/gateway.h"
 
+#include <pthread.h>
+
+#include <atomic>
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -7,8 +10,6 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
-
-#include <atomic>
 #include <deque>
 #include <fstream>
 #include <map>
@@ -59,8 +60,7 @@ struct Gateway::Impl {
 // One WebSocket connection: its calls and its single outgoing queue (one write in flight).
 class WsSession : public CallSink, public std::enable_shared_from_this<WsSession> {
  public:
-  WsSession(Gateway::Impl& gw, beast::tcp_stream&& stream)
-      : gw_(gw), ws_(std::move(stream)) {}
+  WsSession(Gateway::Impl& gw, beast::tcp_stream&& stream) : gw_(gw), ws_(std::move(stream)) {}
   ~WsSession() override { gw_.connections.fetch_sub(1); }
 
   void Run(http::request<http::string_body> request) {
@@ -77,9 +77,8 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
     timeouts.idle_timeout = std::chrono::seconds(30);
     timeouts.keep_alive_pings = true;  // a vanished browser is noticed within a minute
     ws_.set_option(timeouts);
-    ws_.set_option(websocket::stream_base::decorator([](websocket::response_type& res) {
-      res.set(http::field::server, "rheod");
-    }));
+    ws_.set_option(websocket::stream_base::decorator(
+        [](websocket::response_type& res) { res.set(http::field::server, "rheod"); }));
     ws_.read_message_max(gw_.options.max_message_bytes);
     ws_.async_accept(request, beast::bind_front_handler(&WsSession::OnAccept, shared_from_this()));
   }
@@ -96,13 +95,13 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
   // CallSink, from gRPC's threads.
   void Deliver(uint32_t id, bool binary, std::string payload,
                std::function<void()> written) override {
-    net::post(ws_.get_executor(), [self = shared_from_this(), id, binary,
-                                   payload = std::move(payload),
-                                   written = std::move(written)]() mutable {
-      if (self->closed_) return;  // the call was abandoned; it finishes on its own
-      self->Enqueue(binary ? FormatBinaryMessage(id, payload) : FormatMessage(id, payload),
-                    binary, std::move(written));
-    });
+    net::post(
+        ws_.get_executor(), [self = shared_from_this(), id, binary, payload = std::move(payload),
+                             written = std::move(written)]() mutable {
+          if (self->closed_) return;  // the call was abandoned; it finishes on its own
+          self->Enqueue(binary ? FormatBinaryMessage(id, payload) : FormatMessage(id, payload),
+                        binary, std::move(written));
+        });
   }
   void Finish(uint32_t id, const grpc::Status& status) override {
     net::post(ws_.get_executor(), [self = shared_from_this(), id, status] {
@@ -160,8 +159,9 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
                      "no method \"" + m.method + "\"; the methods are " + gw_.bridge.MethodList());
       if (method->client_streaming && !m.stream)
         return Reply(m.id, grpc::StatusCode::INVALID_ARGUMENT,
-                     m.method + " is a client stream: open it with \"stream\": true and send "
-                                "each request as a \"write\"");
+                     m.method +
+                         " is a client stream: open it with \"stream\": true and send "
+                         "each request as a \"write\"");
       std::string first;
       if (m.has_payload) {
         if (grpc::Status s = gw_.bridge.JsonToBinary(method->input, m.payload, &first); !s.ok())
@@ -267,8 +267,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     if (ec) {
       // A malformed request gets a 400 saying why when the socket still works.
       if (ec.category() == http::make_error_code(http::error::bad_target).category()) {
-        auto res = std::make_shared<http::response<http::string_body>>(http::status::bad_request,
-                                                                       11);
+        auto res =
+            std::make_shared<http::response<http::string_body>>(http::status::bad_request, 11);
         res->set(http::field::content_type, "text/plain; charset=utf-8");
         res->body() = "bad HTTP request: " + ec.message() + "\n";
         res->keep_alive(false);
@@ -361,7 +361,9 @@ void Gateway::Impl::Accept() {
 Gateway::Gateway(GatewayOptions options, std::shared_ptr<grpc::Channel> channel)
     : impl_(std::make_unique<Impl>(std::move(options), std::move(channel))) {}
 
-Gateway::~Gateway() { Stop(); }
+Gateway::~Gateway() {
+  Stop();
+}
 
 grpc::Status Gateway::Start() {
   const std::string& address = impl_->options.address;
@@ -369,7 +371,8 @@ grpc::Status Gateway::Start() {
   if (colon == std::string::npos)
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                         "--http wants host:port (e.g. 127.0.0.1:8080, port 0 = any free) or off; "
-                        "got \"" + address + "\"");
+                        "got \"" +
+                            address + "\"");
   std::string host = address.substr(0, colon);
   if (host.size() > 2 && host.front() == '[' && host.back() == ']')
     host = host.substr(1, host.size() - 2);
@@ -403,11 +406,16 @@ grpc::Status Gateway::Start() {
   impl_->work.emplace(net::make_work_guard(impl_->ioc));
   impl_->Accept();
   for (int i = 0; i < std::max(1, impl_->options.threads); ++i)
-    impl_->threads.emplace_back([this] { impl_->ioc.run(); });
+    impl_->threads.emplace_back([this] {
+      pthread_setname_np(pthread_self(), "rheod-http");  // for top -H and the benchmark
+      impl_->ioc.run();
+    });
   return grpc::Status::OK;
 }
 
-int Gateway::port() const { return impl_->port; }
+int Gateway::port() const {
+  return impl_->port;
+}
 
 GatewayStats Gateway::stats() const {
   GatewayStats s;

@@ -17,12 +17,12 @@ struct GatewayOptions {
   std::filesystem::path web_root;          // clients/web: index.html, js/, node_modules/three
   int threads = 2;
   int max_connections = 256;
-  size_t max_message_bytes = 64u << 20;    // a sketch with its photo
+  size_t max_message_bytes = 64u << 20;  // a sketch with its photo
   int max_calls_per_connection = 64;
 };
 
 struct GatewayStats {
-  int connections = 0;     // open WebSocket connections
+  int connections = 0;  // open WebSocket connections
   uint64_t messages_out = 0;
   uint64_t bytes_out = 0;
 };
