@@ -111,8 +111,12 @@ TEST(WebEnvelope, MutatedMessagesAreParsedOrRefusedNeverAnythingElse) {
       ++parsed;
       ASSERT_GE(m.id, 1u);
       ASSERT_LE(m.id, kMaxCallId);
-      if (m.kind == ClientMessage::Kind::kOpen) ASSERT_FALSE(m.method.empty()) << s;
-      if (m.kind == ClientMessage::Kind::kWrite) ASSERT_TRUE(m.has_payload) << s;
+      if (m.kind == ClientMessage::Kind::kOpen) {
+        ASSERT_FALSE(m.method.empty()) << s;
+      }
+      if (m.kind == ClientMessage::Kind::kWrite) {
+        ASSERT_TRUE(m.has_payload) << s;
+      }
     } else {
       ++refused;
       ASSERT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << s;
