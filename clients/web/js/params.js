@@ -3,19 +3,29 @@
 
 const RANGE_STEPS = 1000;
 
-/** Whether a range is better walked on a log scale (positive and over two decades). */
-function logScale(p) {
-  return p.min > 0 && p.max / p.min > 100;
+/**
+ * The low end of a log-scaled slider, or null for a linear one. Ranges over more than two
+ * decades walk logarithmically; one starting at 0 walks from a millionth of its top (slider 0
+ * is still exactly 0).
+ */
+function logLow(p) {
+  const lo = p.min > 0 ? p.min : p.max * 1e-6;
+  return p.max > 0 && p.min >= 0 && p.max / lo > 100 ? lo : null;
 }
 
 function toSlider(p, v) {
-  const t = logScale(p) ? Math.log(v / p.min) / Math.log(p.max / p.min) : (v - p.min) / (p.max - p.min || 1);
+  const lo = logLow(p);
+  let t;
+  if (lo === null) t = (v - p.min) / (p.max - p.min || 1);
+  else t = v <= lo ? (v <= p.min ? 0 : 1 / RANGE_STEPS) : Math.log(v / lo) / Math.log(p.max / lo);
   return Math.round(Math.min(1, Math.max(0, t)) * RANGE_STEPS);
 }
 
 function fromSlider(p, s) {
+  const lo = logLow(p);
   const t = s / RANGE_STEPS;
-  const v = logScale(p) ? p.min * Math.pow(p.max / p.min, t) : p.min + t * (p.max - p.min);
+  if (s <= 0) return p.min;
+  const v = lo === null ? p.min + t * (p.max - p.min) : lo * Math.pow(p.max / lo, t);
   return Number(v.toPrecision(4));
 }
 

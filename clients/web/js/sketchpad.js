@@ -68,8 +68,8 @@ export class SketchPad extends EventTarget {
       if (Math.hypot(p[0] - last[0], p[1] - last[1]) < 0.5) continue;
       this.current.points.push(p);
       this.current.pressure.push(this.pressureOf(ev));
+      this.drawSegment(this.current, this.current.points.length - 1);
     }
-    this.draw();
   }
 
   onUp(e) {
@@ -186,6 +186,22 @@ export class SketchPad extends EventTarget {
     this.changed();
   }
 
+  unit() {
+    return Math.max(this.canvas.width, this.canvas.height) / STROKE_SIZE;
+  }
+
+  /** One segment of a stroke (from point i - 1 to i), pressure setting its width. */
+  drawSegment(s, i) {
+    const { ctx } = this;
+    ctx.lineCap = 'round';
+    ctx.strokeStyle = '#1d2433';
+    ctx.lineWidth = this.unit() * (1.5 + 4 * s.pressure[i]);
+    ctx.beginPath();
+    ctx.moveTo(s.points[i - 1][0], s.points[i - 1][1]);
+    ctx.lineTo(s.points[i][0], s.points[i][1]);
+    ctx.stroke();
+  }
+
   draw() {
     const { ctx, canvas } = this;
     const w = canvas.width;
@@ -202,19 +218,8 @@ export class SketchPad extends EventTarget {
       ctx.globalAlpha = 1;
     }
     if (this.picture) ctx.drawImage(this.picture.image, 0, 0);
-    const unit = Math.max(w, h) / STROKE_SIZE;
-    ctx.lineCap = 'round';
-    ctx.lineJoin = 'round';
-    ctx.strokeStyle = '#1d2433';
-    for (const s of this.strokes) {
-      for (let i = 1; i < s.points.length; i++) {
-        ctx.lineWidth = unit * (1.5 + 4 * s.pressure[i]);
-        ctx.beginPath();
-        ctx.moveTo(s.points[i - 1][0], s.points[i - 1][1]);
-        ctx.lineTo(s.points[i][0], s.points[i][1]);
-        ctx.stroke();
-      }
-    }
+    const unit = this.unit();
+    for (const s of this.strokes) for (let i = 1; i < s.points.length; i++) this.drawSegment(s, i);
     if (this.contour) {
       ctx.beginPath();
       this.contour.forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));

@@ -301,6 +301,10 @@ export class Studio {
       return;
     }
     const d = this.device;
+    if (d.kind === 'DEVICE_KIND_NONE') {
+      info.textContent = 'No haptic device attached (rheod --device none): watch only.';
+      return;
+    }
     info.textContent = `${d.model || d.name || d.kind}${d.connected ? '' : ' (not connected)'}`;
     const button = (label, onClick) => {
       const b = document.createElement('button');

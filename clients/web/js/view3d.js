@@ -129,19 +129,36 @@ export class View3D {
       if (o) this.removeObject(t.instanceId); // rebuilt below with the new topology
     }
     const seen = new Set();
+    let changed = (frame.topology || []).length > 0;
     for (const s of frame.objects || []) {
       seen.add(s.instanceId);
       const o = this.objects.get(s.instanceId) || this.createObject(s.instanceId);
       if (!o) continue;
-      if (this.updatePositions(o, s)) o.hasPositions = true;
+      // A resting object sends the same positions again: nothing to redraw.
+      const key = s.positionsQ || (s.positions && s.positions.length ? s.positions : null);
+      if (key && key === o.lastKey) continue;
+      if (this.updatePositions(o, s)) {
+        o.hasPositions = true;
+        o.lastKey = typeof key === 'string' ? key : null;
+        changed = true;
+      }
       o.mesh.visible = o.hasPositions;
-      o.state = s;
     }
-    for (const id of [...this.objects.keys()]) if (!seen.has(id)) this.removeObject(id);
+    for (const id of [...this.objects.keys()]) {
+      if (!seen.has(id)) {
+        this.removeObject(id);
+        changed = true;
+      }
+    }
     for (const id of [...this.topology.keys()]) if (!seen.has(id) && (frame.topology || []).length) this.topology.delete(id);
-    this.applyTool(frame.tool);
+    const toolKey = JSON.stringify(frame.tool || null);
+    if (toolKey !== this.lastToolKey) {
+      this.lastToolKey = toolKey;
+      this.applyTool(frame.tool);
+      changed = true;
+    }
     if (!this.framed && this.objects.size && [...this.objects.values()].some((o) => o.hasPositions)) this.frameAll();
-    this.dirty = true;
+    if (changed) this.dirty = true;
   }
 
   createObject(id) {
@@ -296,6 +313,7 @@ export class View3D {
   reset() {
     for (const id of [...this.objects.keys()]) this.removeObject(id);
     this.topology.clear();
+    this.lastToolKey = undefined;
     this.dirty = true;
   }
 }
