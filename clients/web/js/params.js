@@ -53,14 +53,21 @@ export class ParamsPanel {
     this.rows = new Map(); // name -> {param, slider, number, server}
     this.pending = new Map(); // name -> value waiting for the debounce
     this.timer = null;
-    this.select.addEventListener('change', () => this.show(Number(this.select.value)));
+    this.userChose = false; // until the user picks one, the newest object is shown
+    this.select.addEventListener('change', () => {
+      this.userChose = true;
+      this.show(Number(this.select.value));
+    });
   }
 
   /** Refreshes the instance selector from GetScene; keeps or picks the selection. */
   async refreshScene(prefer) {
     const scene = await this.rpc.call('rheo.v1.SceneService/GetScene', {});
     const objects = scene.objects || [];
-    const keep = prefer ?? this.instanceId;
+    if (prefer !== undefined) this.userChose = false;
+    const ids = objects.map((o) => o.instanceId);
+    const newest = ids.length ? ids[ids.length - 1] : 0;
+    const keep = prefer ?? (this.userChose ? this.instanceId : newest);
     this.select.replaceChildren();
     for (const o of objects) {
       const opt = document.createElement('option');
@@ -72,10 +79,10 @@ export class ParamsPanel {
     scenOpt.value = '0';
     scenOpt.textContent = 'Scene (gravity, floor)';
     this.select.appendChild(scenOpt);
-    const ids = objects.map((o) => o.instanceId);
-    const chosen = ids.includes(keep) || keep === 0 ? keep : ids.length ? ids[ids.length - 1] : 0;
+    const chosen = ids.includes(keep) || keep === 0 ? keep : newest;
     this.select.value = String(chosen);
-    await this.show(chosen);
+    // Rebuilding an unchanged panel would throw away a slider the user is moving.
+    if (chosen !== this.instanceId || !this.rows.size) await this.show(chosen);
     return scene;
   }
 

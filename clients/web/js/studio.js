@@ -55,8 +55,8 @@ export class Studio {
   // ------------------------------------------------------------------ connection
 
   async onConnected() {
+    this.sceneRevision = undefined;
     await Promise.allSettled([this.library.refresh(), this.params.refreshScene(), this.loadDevice()]);
-    this.sceneRevision = null;
   }
 
   onStatus() {}
@@ -65,9 +65,8 @@ export class Studio {
     // The scene changed (an object added or removed anywhere): refresh the instance list.
     const rev = frame.topologyRevision;
     if (rev !== undefined && rev !== this.sceneRevision) {
-      const first = this.sceneRevision === null || this.sceneRevision === undefined;
       this.sceneRevision = rev;
-      if (!first) this.params.refreshScene().catch(() => {});
+      this.params.refreshScene().catch(() => {});
     }
   }
 
