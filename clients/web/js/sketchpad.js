@@ -224,14 +224,14 @@ export class SketchPad extends EventTarget {
       ctx.beginPath();
       this.contour.forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
       ctx.closePath();
-      ctx.fillStyle = 'rgba(38, 132, 255, 0.12)';
+      ctx.fillStyle = 'rgba(38, 132, 255, 0.10)';
       ctx.fill();
-      ctx.lineWidth = 2 * unit;
-      ctx.strokeStyle = '#1b6ef3';
+      ctx.lineWidth = 1.5 * unit;
+      ctx.strokeStyle = '#e8590c';
       ctx.setLineDash([6 * unit, 4 * unit]);
       ctx.stroke();
       ctx.setLineDash([]);
-      ctx.fillStyle = '#1b6ef3';
+      ctx.fillStyle = '#e8590c';
       for (const [x, y] of this.contour) {
         ctx.beginPath();
         ctx.arc(x, y, 2.5 * unit, 0, Math.PI * 2);

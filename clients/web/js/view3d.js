@@ -11,16 +11,26 @@ const ARROW_M_PER_N = 0.02; // arrow length per newton of displayed force [m/N]
 
 const vec = (v) => new THREE.Vector3(v?.x || 0, v?.y || 0, v?.z || 0);
 
+function isSoftwareRenderer(gl) {
+  const ext = gl.getExtension('WEBGL_debug_renderer_info');
+  const name = ext ? gl.getParameter(ext.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
+  return /swiftshader|llvmpipe|software/i.test(String(name));
+}
+
 export class View3D {
   /** @param {HTMLCanvasElement} canvas  @param {HTMLElement} overlay element for labels */
   constructor(canvas, overlay) {
     this.canvas = canvas;
     this.overlay = overlay;
     this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
-    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
-    this.renderer.shadowMap.enabled = true;
+    // A software rasteriser (no GPU) gets one pixel per CSS pixel and no shadows, so that the
+    // page stays responsive.
+    this.software = isSoftwareRenderer(this.renderer.getContext());
+    this.renderer.setPixelRatio(this.software ? 1 : Math.min(window.devicePixelRatio || 1, 2));
+    this.renderer.shadowMap.enabled = !this.software;
     this.scene = new THREE.Scene();
     this.scene.background = new THREE.Color(0xeef1f5);
+    this.scene.fog = new THREE.Fog(0xeef1f5, 0.6, 2.2); // the floor fades out instead of ending
     this.camera = new THREE.PerspectiveCamera(40, 1, 0.002, 20);
     this.camera.position.set(0.16, 0.14, 0.26);
     this.controls = new OrbitControls(this.camera, canvas);
@@ -70,7 +80,7 @@ export class View3D {
     if (this.floor) this.scene.remove(this.floor);
     const g = new THREE.Group();
     const plane = new THREE.Mesh(
-      new THREE.PlaneGeometry(1.2, 1.2),
+      new THREE.PlaneGeometry(6, 6),
       new THREE.MeshStandardMaterial({ color: 0xdde2ea, roughness: 0.95 }),
     );
     plane.rotation.x = -Math.PI / 2;
