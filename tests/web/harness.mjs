@@ -48,6 +48,14 @@ export class Daemon {
     return this.log.split('\n').slice(-lines).join('\n');
   }
 
+  /** Stops the process but keeps the data dir (for a restart on it). */
+  async kill(signal = 'SIGTERM') {
+    if (this.exited === null) {
+      this.proc.kill(signal);
+      await new Promise((r) => (this.exited !== null ? r() : this.proc.once('exit', r)));
+    }
+  }
+
   async stop() {
     if (this.exited === null) {
       this.proc.kill('SIGTERM');
@@ -60,11 +68,11 @@ export class Daemon {
 }
 
 /** Starts rheod and waits for its gRPC and http ports in the log. */
-export async function startDaemon(args, { device = 'none', extra = [] } = {}) {
-  const dataDir = mkdtempSync(join(tmpdir(), 'rheo-web-'));
+export async function startDaemon(args, { device = 'none', extra = [], httpPort = 0, dataDir = null } = {}) {
+  dataDir = dataDir || mkdtempSync(join(tmpdir(), 'rheo-web-'));
   const argv = [
     '--listen', '127.0.0.1:0',
-    '--http', '127.0.0.1:0',
+    '--http', `127.0.0.1:${httpPort}`,
     '--web-root', args.webRoot,
     '--data-dir', dataDir,
     '--device', device,

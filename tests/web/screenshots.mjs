@@ -47,6 +47,7 @@ try {
   await page.mouse.click(hit[0], hit[1]);
   await page.waitForFunction(() => window.rheo.lastFrame()?.tool?.inContact, null, { timeout: 15000 }).catch(() => {});
   await sleep(1200);
+  await page.evaluate(() => (document.querySelector('aside.left').scrollTop = 0));
   await page.screenshot({ path: docs('studio.png') });
   T('pressed');
 

@@ -246,7 +246,7 @@ export class View3D {
     t.forceN = n;
     t.arrow.visible = n > 1e-3;
     if (t.arrow.visible) {
-      const len = Math.min(0.15, Math.max(0.008, n * ARROW_M_PER_N));
+      const len = Math.min(0.15, Math.max(0.018, n * ARROW_M_PER_N));
       t.arrow.position.copy(proxy);
       t.arrow.setDirection(f.clone().normalize());
       t.arrow.setLength(len, Math.min(0.012, len * 0.35), Math.min(0.008, len * 0.22));
