@@ -32,6 +32,8 @@ try {
 
   await page.getByRole('button', { name: 'Create', exact: true }).click();
   await page.waitForFunction(() => window.rheo.stats().objects >= 1, null, { timeout: 60000 });
+  const viewer = await openPage(browser, `${daemon.url}/?view`, { width: 1200, height: 750 });
+  await viewer.waitForFunction(() => window.rheo.stats().objects >= 1, null, { timeout: 20000 });
   await sleep(1500);
   // Press the simulated hand into the middle of the object.
   T('created');
@@ -51,9 +53,6 @@ try {
   await page.screenshot({ path: docs('studio.png') });
   T('pressed');
 
-  const viewer = await openPage(browser, `${daemon.url}/?view`, { width: 1200, height: 750 });
-  await viewer.waitForFunction(() => window.rheo.stats().objects >= 1, null, { timeout: 20000 });
-  await sleep(2500);
   await viewer.screenshot({ path: docs('studio-viewer.png') });
   console.log('wrote docs/studio.png, docs/studio-sketch.png, docs/studio-viewer.png');
 } catch (e) {

@@ -49,9 +49,13 @@ export class View3D {
     this.resizeObserver = new ResizeObserver(() => this.resize());
     this.resizeObserver.observe(canvas.parentElement);
     this.resize();
-    const loop = () => {
+    // Without a GPU each picture costs the page's main thread a lot: at most 20 a second then.
+    const minGapMs = this.software ? 50 : 0;
+    let last = 0;
+    const loop = (now) => {
       this.controls.update();
-      if (this.dirty) {
+      if (this.dirty && now - last >= minGapMs) {
+        last = now;
         this.dirty = false;
         this.renderer.render(this.scene, this.camera);
         this.placeLabel();
