@@ -40,5 +40,14 @@ run('web.create', async ({ daemon, browser }) => {
   const s = await page.evaluate(() => window.rheo.stats());
   assert(s.connected && s.frames > 0 && s.objects === 1, `stats ${JSON.stringify(s)}`);
   assert((await page.locator('#library .lib-item').count()) === 1, 'the library lists it');
+  // Its thumbnail is the SVG export; its OBJ downloads.
+  await page.waitForFunction(() => document.querySelector('#library .thumb')?.naturalWidth > 0, null, { timeout: 15000 });
+  const [download] = await Promise.all([
+    page.waitForEvent('download', { timeout: 15000 }),
+    page.getByRole('link', { name: 'Download test blob as OBJ', exact: true }).click(),
+  ]);
+  assert(download.suggestedFilename() === 'test_blob.obj', `file name ${download.suggestedFilename()}`);
+  const obj = await (await import('node:fs/promises')).readFile(await download.path(), 'utf8');
+  assert(/^v\s/m.test(obj) && /^f\s/m.test(obj), 'the OBJ has vertices and faces');
   assert(page.errors.length === 0, `page errors: ${page.errors.join('; ')}`);
 });
