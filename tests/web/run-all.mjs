@@ -5,7 +5,7 @@
 import { spawnSync } from 'node:child_process';
 import { fileURLToPath } from 'node:url';
 
-const TESTS = ['create', 'params', 'viewers', 'refusal', 'viewonly', 'reconnect', 'tool', 'press', 'cancel'];
+const TESTS = ['create', 'params', 'viewers', 'refusal', 'viewonly', 'reconnect', 'tool', 'press', 'cancel', 'picture'];
 let passed = 0;
 let failed = 0;
 for (const name of TESTS) {

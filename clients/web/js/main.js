@@ -24,6 +24,11 @@ function onFrame(frame) {
   while (stats.times.length && stats.times[0] < now - 1000) stats.times.shift();
   stats.lastFrame = frame;
   view.applyFrame(frame);
+  // Objects the daemon stopped after repeated restores are named in the status line.
+  const stopped = (frame.objects || []).filter((o) => o.unstable).map((o) => `#${o.instanceId}`);
+  const note = stopped.length ? `stopped (unstable): ${stopped.join(' ')}` : frame.paused ? 'paused' : '';
+  const el = $('#st-note');
+  if (el.textContent !== note) el.textContent = note;
   if (studio) studio.onFrame(frame);
 }
 
