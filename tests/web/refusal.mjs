@@ -1,5 +1,6 @@
 // An open outline (a "C" whose ends stay far apart): ExtractContour's refusal is shown in words
-// in the pad's role="alert" element, Create is refused the same way, and nothing is stored.
+// in the pad's role="alert" element, Create is refused the same way, and nothing is stored;
+// Undo and Clear empty the pad and the refusal goes away.
 
 import { run, openPage, drawStrokes, assert, pageCall, sleep } from './harness.mjs';
 
@@ -27,4 +28,14 @@ run('web.refusal', async ({ daemon, browser }) => {
   const scene = await pageCall(page, 'rheo.v1.SceneService/GetScene', {});
   assert((scene.objects || []).length === 0, 'nothing in the scene');
   console.log(`refusal shown: ${after.split('\n')[0]}`);
+
+  // Undo takes the stroke back: the pad is empty and the refusal goes away.
+  await page.getByRole('button', { name: 'Undo', exact: true }).click();
+  await alert.filter({ hasText: /^$/ }).waitFor({ state: 'attached', timeout: 10000 });
+  assert(await page.evaluate(() => document.querySelector('#pad-alert').textContent === ''), 'no alert after Undo');
+  // Clear empties a pad of two strokes.
+  await drawStrokes(page, [arc.slice(0, 20), arc.slice(25)]);
+  await alert.filter({ hasText: /\S/ }).waitFor({ timeout: 15000 });
+  await page.getByRole('button', { name: 'Clear', exact: true }).click();
+  await page.waitForFunction(() => document.querySelector('#pad-alert').textContent === '', null, { timeout: 10000 });
 });
