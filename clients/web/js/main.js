@@ -1,0 +1,156 @@
+// Rheo studio: wires the sketch pad, the make-it panel, the 3D view, the live parameters, the
+// library and the status line to one Rpc connection. `/?view` is a watch-only page: only the 3D
+// view and the status line are put into the document.
+
+import { Rpc, rpcUrl, Code } from './rpc.js';
+import { View3D } from './view3d.js';
+
+const viewOnly = new URLSearchParams(location.search).has('view');
+const $ = (sel) => document.querySelector(sel);
+
+const rpc = new Rpc(rpcUrl());
+const view = new View3D($('#view'), $('#view-overlay'));
+
+// ---------------------------------------------------------------------------------------------
+// Frames and statistics
+
+const stats = { frames: 0, dropped: 0, times: [], lastFrame: null };
+
+function onFrame(frame) {
+  stats.frames += 1;
+  stats.dropped += Number(frame.droppedFrames || 0);
+  const now = performance.now();
+  stats.times.push(now);
+  while (stats.times.length && stats.times[0] < now - 1000) stats.times.shift();
+  stats.lastFrame = frame;
+  view.applyFrame(frame);
+  // Objects the daemon stopped after repeated restores are named in the status line.
+  const stopped = (frame.objects || []).filter((o) => o.unstable).map((o) => `#${o.instanceId}`);
+  const note = stopped.length ? `stopped (unstable): ${stopped.join(' ')}` : frame.paused ? 'paused' : '';
+  const el = $('#st-note');
+  if (el.textContent !== note) el.textContent = note;
+  if (studio) studio.onFrame(frame);
+}
+
+function fps() {
+  const now = performance.now();
+  return stats.times.filter((t) => t >= now - 1000).length;
+}
+
+/** What tests and curious people can read: `window.rheo.stats()`. */
+window.rheo = {
+  rpc,
+  view,
+  viewOnly,
+  stats: () => ({
+    connected: rpc.connected,
+    frames: stats.frames,
+    fps: fps(),
+    objects: view.objectCount(),
+    dropped: stats.dropped,
+  }),
+  lastFrame: () => stats.lastFrame,
+};
+
+let frameRequest = { rateHz: 30, positions: true, quantized: true };
+let frames = null;
+function watchFrames() {
+  if (frames) frames.close();
+  frames = rpc.subscribe('rheo.v1.FrameService/WatchFrames', frameRequest, onFrame, (err) => {
+    // A gateway without quantized positions refuses the field: fall back to plain floats.
+    if (err && err.code === Code.INVALID_ARGUMENT && frameRequest.quantized) {
+      frameRequest = { rateHz: 30, positions: true };
+      watchFrames();
+      return;
+    }
+    // The stream ended on its own (e.g. the daemon restarted the scene): watch again.
+    setTimeout(() => rpc.connected && watchFrames(), 500);
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// Status line and connection banner
+
+function setConn(state) {
+  const pill = $('#st-conn');
+  pill.className = `pill ${state}`;
+  pill.textContent = state === 'open' ? 'connected' : state === 'reconnecting' ? 'reconnecting…' : 'connecting…';
+  $('#banner').hidden = state !== 'reconnecting';
+}
+
+rpc.addEventListener('state', (e) => setConn(e.detail.state));
+rpc.addEventListener('open', () => {
+  view.reset(); // the new subscription sends every topology again
+  loadScene();
+  if (studio) studio.onConnected();
+});
+
+async function loadScene() {
+  try {
+    const scene = await rpc.call('rheo.v1.SceneService/GetScene', {});
+    view.setFloor(scene.floorHeight || 0);
+  } catch (e) {
+    console.warn('GetScene', e);
+  }
+}
+
+let lastStatus = null;
+async function pollStatus() {
+  if (!rpc.connected) return;
+  try {
+    const s = await rpc.call('rheo.v1.DaemonService/GetStatus', {});
+    const ticks = Number(s.loop?.ticks || 0);
+    const t = performance.now();
+    let rate = s.loop?.rateHz || 0;
+    if (lastStatus && t > lastStatus.t) rate = ((ticks - lastStatus.ticks) * 1000) / (t - lastStatus.t);
+    lastStatus = { t, ticks };
+    $('#st-loop').textContent = `loop ${Math.round(rate)} Hz`;
+    $('#st-late').textContent = `late ${Number(s.loop?.lateTicks || 0)}`;
+    $('#st-viewers').textContent = `viewers ${s.frameClients ?? '—'}`;
+    if (studio) studio.onStatus(s);
+  } catch (e) {
+    console.warn('GetStatus', e);
+  }
+}
+
+setInterval(() => {
+  $('#st-fps').textContent = `${fps()} fps`;
+  $('#st-dropped').textContent = `dropped ${stats.dropped}`;
+}, 250);
+setInterval(pollStatus, 1500);
+
+// ---------------------------------------------------------------------------------------------
+// Studio mode: the editing panels exist only here.
+
+let studio = null;
+const template = $('#studio-panels');
+if (viewOnly) {
+  template.remove();
+  $('#mode').textContent = 'viewer';
+  document.title = 'Rheo viewer';
+} else {
+  const panels = template.content.cloneNode(true);
+  template.remove();
+  const layout = $('#layout');
+  layout.classList.add('studio');
+  const [left, right] = panels.querySelectorAll('aside');
+  layout.prepend(left);
+  layout.append(right);
+  const { Studio } = await import('./studio.js');
+  studio = new Studio({ rpc, view, report: (m) => showAppAlert(m) });
+}
+
+function showAppAlert(msg) {
+  const el = $('#app-alert');
+  if (!el) return;
+  el.textContent = msg;
+  clearTimeout(showAppAlert.timer);
+  showAppAlert.timer = setTimeout(() => (el.textContent = ''), 12000);
+}
+
+setConn(rpc.state);
+watchFrames();
+if (rpc.connected) {
+  loadScene();
+  if (studio) studio.onConnected();
+}
