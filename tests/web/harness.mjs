@@ -214,3 +214,20 @@ export function pageCall(page, method, request = {}) {
 }
 
 export const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+/**
+ * Makes an object through the page's own API connection and adds it to the scene (the create test
+ * covers the pad); resolves with CreateObject's progress messages, the object in the last.
+ */
+export function createThroughApi(page, name, strokesJson, resolution) {
+  return page.evaluate(
+    ([name, strokesJson, resolution]) =>
+      window.rheo.rpc.collect('rheo.v1.ObjectService/CreateObject', {
+        name,
+        sketch: { strokesJson },
+        meshOptions: { resolution },
+        addToScene: true,
+      }),
+    [name, strokesJson, resolution],
+  );
+}

@@ -1,7 +1,7 @@
 // Move a parameter slider (k_v) of a scene object: the daemon runs the new value, read back
 // through the API (ListParameters over the page's own connection), and the panel shows it.
 
-import { run, openPage, assert, pageCall, sleep } from './harness.mjs';
+import { run, openPage, assert, pageCall, sleep, createThroughApi } from './harness.mjs';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
 
@@ -10,16 +10,7 @@ const sample = readFileSync(fileURLToPath(new URL('../../samples/bean.json', imp
 run('web.params', async ({ daemon, browser }) => {
   const page = await openPage(browser, `${daemon.url}/`);
   // The object is made through the API (the create test covers the pad); the panel follows it.
-  const progress = await page.evaluate(
-    (strokesJson) =>
-      window.rheo.rpc.collect('rheo.v1.ObjectService/CreateObject', {
-        name: 'bean',
-        sketch: { strokesJson },
-        meshOptions: { resolution: 0.014 },
-        addToScene: true,
-      }),
-    sample,
-  );
+  const progress = await createThroughApi(page, 'bean', sample, 0.014);
   const inst = progress[progress.length - 1].sceneObject.instanceId;
   assert(inst > 0, 'added to the scene');
   await page.waitForFunction((id) => document.querySelector('#param-instance').value === String(id), inst, { timeout: 15000 });

@@ -2,7 +2,7 @@
 // it (SimulatedHand); frames show the tool in contact with that object and a force on the hand,
 // and the 3D view labels it in N.
 
-import { run, openPage, assert } from './harness.mjs';
+import { run, openPage, assert, createThroughApi } from './harness.mjs';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
 
@@ -12,16 +12,7 @@ run(
   'web.press',
   async ({ daemon, browser }) => {
     const page = await openPage(browser, `${daemon.url}/`);
-    const progress = await page.evaluate(
-      (strokesJson) =>
-        window.rheo.rpc.collect('rheo.v1.ObjectService/CreateObject', {
-          name: 'ellipse',
-          sketch: { strokesJson },
-          meshOptions: { resolution: 0.016 },
-          addToScene: true,
-        }),
-      sample,
-    );
+    const progress = await createThroughApi(page, 'ellipse', sample, 0.016);
     const inst = progress[progress.length - 1].sceneObject.instanceId;
     await page.waitForFunction(() => window.rheo.stats().objects === 1, null, { timeout: 20000 });
     // A click on the object's centre as the view draws it; on a loaded machine the object may

@@ -1,7 +1,7 @@
 // --device network: "Drag tool" takes the control lease and moves the tool with the mouse
 // through ToolStream; frames show the tool where it was dragged, and stopping releases the lease.
 
-import { run, openPage, assert, pageCall, sleep } from './harness.mjs';
+import { run, openPage, assert, pageCall, sleep, createThroughApi } from './harness.mjs';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
 
@@ -11,16 +11,7 @@ run(
   'web.tool',
   async ({ daemon, browser }) => {
     const page = await openPage(browser, `${daemon.url}/`);
-    await page.evaluate(
-      (strokesJson) =>
-        window.rheo.rpc.collect('rheo.v1.ObjectService/CreateObject', {
-          name: 'ellipse',
-          sketch: { strokesJson },
-          meshOptions: { resolution: 0.016 },
-          addToScene: true,
-        }),
-      sample,
-    );
+    await createThroughApi(page, 'ellipse', sample, 0.016);
     await page.waitForFunction(() => window.rheo.stats().objects === 1, null, { timeout: 20000 });
     const drag = page.getByRole('button', { name: 'Drag tool', exact: true });
     await drag.click();

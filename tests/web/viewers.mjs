@@ -1,7 +1,7 @@
 // Two pages, the studio and a watch-only /?view, watch the same simulation: both receive frames
 // whose stamp ticks advance, over the same span of ticks, and both see the same object.
 
-import { run, openPage, assert, sleep } from './harness.mjs';
+import { run, openPage, assert, sleep, createThroughApi } from './harness.mjs';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
 
@@ -23,16 +23,7 @@ function recordTicks(page) {
 run('web.viewers', async ({ daemon, browser }) => {
   const studio = await openPage(browser, `${daemon.url}/`);
   const viewer = await openPage(browser, `${daemon.url}/?view`);
-  await studio.evaluate(
-    (strokesJson) =>
-      window.rheo.rpc.collect('rheo.v1.ObjectService/CreateObject', {
-        name: 'ellipse',
-        sketch: { strokesJson },
-        meshOptions: { resolution: 0.016 },
-        addToScene: true,
-      }),
-    sample,
-  );
+  await createThroughApi(studio, 'ellipse', sample, 0.016);
   await recordTicks(studio);
   await recordTicks(viewer);
   await sleep(2000);
@@ -48,6 +39,10 @@ run('web.viewers', async ({ daemon, browser }) => {
   await viewer.waitForFunction(() => window.rheo.stats().objects === 1, null, { timeout: 10000 });
   const vs = await viewer.evaluate(() => window.rheo.stats());
   assert(vs.connected && vs.fps > 0, `viewer stats ${JSON.stringify(vs)}`);
+  // The loop's publish to this page's receipt, as the page measures it.
+  const l = vs.latencyMs;
+  assert(l.count > 10 && l.p50 >= 0 && l.p99 < 5000, `frame latency ${JSON.stringify(l)}`);
+  console.log(`browser frame latency: p50 ${l.p50} ms, p99 ${l.p99} ms over ${l.count} frames`);
   // The status line counts both pages' frame streams.
   await viewer.locator('#st-viewers').filter({ hasText: /viewers [2-9]/ }).waitFor({ timeout: 10000 });
   assert(studio.errors.length === 0 && viewer.errors.length === 0, `page errors: ${[...studio.errors, ...viewer.errors].join('; ')}`);

@@ -14,10 +14,23 @@ const view = new View3D($('#view'), $('#view-overlay'));
 // ---------------------------------------------------------------------------------------------
 // Frames and statistics
 
-const stats = { frames: 0, dropped: 0, times: [], lastFrame: null };
+const stats = { frames: 0, dropped: 0, times: [], lastFrame: null, latencies: [] };
+
+// Milliseconds from the loop publishing a frame (its stamp) to this page receiving it, over the
+// last 600 frames (the daemon's and this machine's clocks are one when both run here).
+function latency() {
+  const v = [...stats.latencies].sort((a, b) => a - b);
+  const at = (q) => (v.length ? v[Math.min(v.length - 1, Math.round(q * (v.length - 1)))] : 0);
+  return { p50: at(0.5), p99: at(0.99), count: v.length };
+}
 
 function onFrame(frame) {
   stats.frames += 1;
+  const published = Date.parse(frame.stamp?.published || '');
+  if (Number.isFinite(published) && published > 0) {
+    stats.latencies.push(Date.now() - published);
+    if (stats.latencies.length > 600) stats.latencies.shift();
+  }
   stats.dropped += Number(frame.droppedFrames || 0);
   const now = performance.now();
   stats.times.push(now);
@@ -48,6 +61,7 @@ window.rheo = {
     fps: fps(),
     objects: view.objectCount(),
     dropped: stats.dropped,
+    latencyMs: latency(),
   }),
   lastFrame: () => stats.lastFrame,
 };
