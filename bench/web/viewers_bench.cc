@@ -44,13 +44,13 @@ using namespace std::chrono_literals;
 class Daemon {
  public:
   explicit Daemon(const std::string& path) {
-    data_ = std::filesystem::temp_directory_path() / ("rheo-webbench-" + std::to_string(getpid()) +
-                                                      "-" + std::to_string(++count_));
+    data_ = std::filesystem::temp_directory_path() /
+            ("rheo-webbench-" + std::to_string(getpid()) + "-" + std::to_string(++count_));
     std::filesystem::create_directories(data_);
     log_ = data_ / "rheod.log";
-    std::vector<std::string> args = {path,      "--listen", "127.0.0.1:0", "--http",
-                                     "127.0.0.1:0", "--data-dir", data_.string(),
-                                     "--http-connections", "1000"};
+    std::vector<std::string> args = {path,           "--listen",           "127.0.0.1:0",
+                                     "--http",       "127.0.0.1:0",        "--data-dir",
+                                     data_.string(), "--http-connections", "1000"};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -274,12 +274,13 @@ int main(int argc, char** argv) {
       for (bool quantized : {false, true}) {
         std::string error;
         auto c = rheo::ws::Client::Connect("127.0.0.1", d.http_port(), &error);
-        c->SendText(json{{"id", 1},
-                         {"method", "rheo.v1.FrameService/WatchFrames"},
-                         {"request", {{"rateHz", 60}, {"positions", true}, {"quantized", quantized},
-                                      {"maxFrames", 61}}},
-                         {"binary", binary}}
-                        .dump());
+        c->SendText(json{
+            {"id", 1},
+            {"method", "rheo.v1.FrameService/WatchFrames"},
+            {"request",
+             {{"rateHz", 60}, {"positions", true}, {"quantized", quantized}, {"maxFrames", 61}}},
+            {"binary",
+             binary}}.dump());
         rheo::ws::Message m;
         uint64_t bytes = 0, n = 0;
         bool first = true;
@@ -326,9 +327,11 @@ int main(int argc, char** argv) {
           }
           ++r.frames;
           r.bytes += m.data.size();
-          if (const int64_t p = PublishedNs(m.data); p > 0) r.latency_ms.push_back((now - p) * 1e-6);
+          if (const int64_t p = PublishedNs(m.data); p > 0)
+            r.latency_ms.push_back((now - p) * 1e-6);
           auto at = m.data.find("\"droppedFrames\":\"");
-          if (at != std::string::npos) r.dropped += std::strtoull(m.data.c_str() + at + 17, nullptr, 10);
+          if (at != std::string::npos)
+            r.dropped += std::strtoull(m.data.c_str() + at + 17, nullptr, 10);
         }
         c->Close();
       });
@@ -364,14 +367,17 @@ int main(int argc, char** argv) {
     std::printf("| rheod CPU without / with viewers [cores] | %.2f / %.2f |\n", quiet_cpu,
                 loaded_cpu);
     std::printf("| gateway threads' CPU [cores] | %.2f |\n", http_cpu);
-    std::printf("\n| loop period [us] | p50 | p99 | p99.9 | max | late ticks |\n|---|---|---|---|---|---|\n");
+    std::printf(
+        "\n| loop period [us] | p50 | p99 | p99.9 | max | late ticks "
+        "|\n|---|---|---|---|---|---|\n");
     std::printf("| without viewers | %.1f | %.1f | %.1f | %.1f | %llu |\n", quiet.p50, quiet.p99,
                 quiet.p999, quiet.max, static_cast<unsigned long long>(quiet.late));
     std::printf("| with %d viewers | %.1f | %.1f | %.1f | %.1f | %llu |\n", viewers, loaded.p50,
                 loaded.p99, loaded.p999, loaded.max, static_cast<unsigned long long>(loaded.late));
     std::printf("| difference | %+.1f | %+.1f | %+.1f | | |\n", loaded.p50 - quiet.p50,
                 loaded.p99 - quiet.p99, loaded.p999 - quiet.p999);
-    std::printf("\n| frame encoding (one object, after the topology) | bytes per frame |\n|---|---|\n");
+    std::printf(
+        "\n| frame encoding (one object, after the topology) | bytes per frame |\n|---|---|\n");
     for (auto& [name, b] : encodings) std::printf("| %s | %.0f |\n", name.c_str(), b);
     std::printf("\n(loop percentiles are the daemons' own, over each daemon's whole run)\n");
   }

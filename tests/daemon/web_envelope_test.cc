@@ -87,8 +87,7 @@ TEST(WebEnvelope, MutatedMessagesAreParsedOrRefusedNeverAnythingElse) {
       R"({"id":1,"method":"rheo.v1.ObjectService/CreateObject","request":{"name":"a","sketch":{"strokesJson":"{\"width\":10,\"height\":10,\"strokes\":[[[1,2],[3,4]]]}"}}})",
       R"({"id":22,"method":"rheo.v1.DeviceService/ToolStream","stream":true,"binary":false})",
       R"({"id":7,"write":{"leaseId":"abc","pose":{"position":{"x":0.1,"y":-2e-3,"z":1e300}}}})",
-      R"({"id":7,"end":true})",
-      R"({"id":7,"cancel":true})"};
+      R"({"id":7,"end":true})", R"({"id":7,"cancel":true})"};
   const std::string alphabet = "{}[]\":,0123456789-+.eE truefalsnl\\u00\xc3\xa9\x00\xff";
   std::mt19937 rng(20261202);
   int parsed = 0, refused = 0;
@@ -154,10 +153,27 @@ TEST(WebStaticFiles, MapsPathsInsideTheRootAndRefusesTheRest) {
   EXPECT_EQ(r("/a%20b.png"), root / "a b.png");
   EXPECT_EQ(r("/vendor/three/build/three.module.js"),
             root / "node_modules/three/build/three.module.js");
-  for (const char* bad :
-       {"", "index.html", "/..", "/../x", "/a/../../x", "/%2e%2e/x", "/%2E%2E/x", "/a/./b", "/a//b",
-        "/a/", "/a%2f..%2f..%2fx", "/a\\b", "/a%5c..", "/%00", "/%", "/%4", "/%zz",
-        "/node_modules/three/build/three.module.js", "/vendor/other/x.js", "/vendor", "/vendor/"})
+  for (const char* bad : {"",
+                          "index.html",
+                          "/..",
+                          "/../x",
+                          "/a/../../x",
+                          "/%2e%2e/x",
+                          "/%2E%2E/x",
+                          "/a/./b",
+                          "/a//b",
+                          "/a/",
+                          "/a%2f..%2f..%2fx",
+                          "/a\\b",
+                          "/a%5c..",
+                          "/%00",
+                          "/%",
+                          "/%4",
+                          "/%zz",
+                          "/node_modules/three/build/three.module.js",
+                          "/vendor/other/x.js",
+                          "/vendor",
+                          "/vendor/"})
     EXPECT_FALSE(r(bad).has_value()) << bad;
   EXPECT_STREQ(StaticFiles::ContentType("a.js"), "text/javascript; charset=utf-8");
   EXPECT_STREQ(StaticFiles::ContentType("a.unknown"), "application/octet-stream");
