@@ -67,17 +67,16 @@ std::unique_ptr<Client> Client::Connect(const std::string& host, int port, std::
 }
 
 bool Client::SendText(const std::string& text) {
-  beast::error_code ec;
-  impl_->ws.text(true);
-  impl_->ws.write(net::buffer(text), ec);
-  if (ec) error_ = ec.message();
-  return !ec;
+  return Send(text, false);
+}
+bool Client::SendBinary(const std::string& bytes) {
+  return Send(bytes, true);
 }
 
-bool Client::SendBinary(const std::string& bytes) {
+bool Client::Send(const std::string& data, bool binary) {
   beast::error_code ec;
-  impl_->ws.binary(true);
-  impl_->ws.write(net::buffer(bytes), ec);
+  impl_->ws.binary(binary);
+  impl_->ws.write(net::buffer(data), ec);
   if (ec) error_ = ec.message();
   return !ec;
 }

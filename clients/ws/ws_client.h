@@ -38,6 +38,7 @@ class Client {
 
  private:
   explicit Client(std::unique_ptr<Impl> impl);
+  bool Send(const std::string& data, bool binary);
   std::unique_ptr<Impl> impl_;
   std::string error_;
 };

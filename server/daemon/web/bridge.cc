@@ -116,7 +116,7 @@ Call::~Call() = default;
 
 void Call::Start(const std::string* first, bool half_close) {
   self_ = shared_from_this();
-  bridge_.live_calls_counter().fetch_add(1);
+  bridge_.live_calls_.fetch_add(1);
   bridge_.stub().PrepareBidiStreamingCall(&context_, method_.path, grpc::StubOptions(), this);
   // The hold lets reads and writes start from outside reactions (the WebSocket's threads); it is
   // released when the responses end.
@@ -212,8 +212,6 @@ void Call::OnWriteDone(bool ok) {
   StartNextWriteLocked();
 }
 
-void Call::OnWritesDoneDone(bool) {}
-
 void Call::OnReadDone(bool ok) {
   if (!ok) {
     {
@@ -267,7 +265,7 @@ void Call::OnDone(const grpc::Status& status) {
     sink = sink_.lock();
   }
   if (sink) sink->Finish(id_, final_status);
-  bridge_.live_calls_counter().fetch_sub(1);
+  bridge_.live_calls_.fetch_sub(1);
   std::shared_ptr<Call> keep = std::move(self_);  // may be the last owner: released on return
 }
 

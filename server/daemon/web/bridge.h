@@ -72,7 +72,6 @@ class Call : public grpc::ClientBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>,
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override;
-  void OnWritesDoneDone(bool ok) override;
   void OnDone(const grpc::Status& status) override;
 
  private:
@@ -119,12 +118,12 @@ class Bridge {
   grpc::GenericStub& stub() { return stub_; }
   /// Calls not yet finished (for an orderly stop).
   int live_calls() const { return live_calls_.load(); }
-  std::atomic<int>& live_calls_counter() { return live_calls_; }
 
  private:
   std::shared_ptr<grpc::Channel> channel_;
   grpc::GenericStub stub_;
   std::map<std::string, MethodInfo> methods_;
+  friend class Call;  // counts itself in and out of live_calls_
   std::atomic<int> live_calls_{0};
 };
 

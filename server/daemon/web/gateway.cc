@@ -11,12 +11,9 @@
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 #include <deque>
-#include <fstream>
 #include <map>
 #include <mutex>
 #include <optional>
-#include <set>
-#include <sstream>
 #include <thread>
 #include <vector>
 
@@ -44,8 +41,6 @@ struct Gateway::Impl {
   std::vector<std::thread> threads;
   int port = 0;
   std::atomic<int> connections{0};
-  std::atomic<uint64_t> messages_out{0};
-  std::atomic<uint64_t> bytes_out{0};
   std::atomic<bool> stopping{false};
 
   std::mutex sessions_mutex;
@@ -214,10 +209,8 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
                     beast::bind_front_handler(&WsSession::OnWrite, shared_from_this()));
   }
 
-  void OnWrite(beast::error_code ec, size_t bytes) {
+  void OnWrite(beast::error_code ec, size_t) {
     if (ec) return Shutdown();
-    gw_.messages_out.fetch_add(1, std::memory_order_relaxed);
-    gw_.bytes_out.fetch_add(bytes, std::memory_order_relaxed);
     std::function<void()> written = std::move(out_.front().written);
     out_.pop_front();
     if (written) written();  // the call reads its next response
@@ -415,14 +408,6 @@ grpc::Status Gateway::Start() {
 
 int Gateway::port() const {
   return impl_->port;
-}
-
-GatewayStats Gateway::stats() const {
-  GatewayStats s;
-  s.connections = impl_->connections.load();
-  s.messages_out = impl_->messages_out.load();
-  s.bytes_out = impl_->bytes_out.load();
-  return s;
 }
 
 void Gateway::Stop() {

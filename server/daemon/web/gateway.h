@@ -41,7 +41,6 @@ class Gateway {
   int port() const;
   /// Closes every connection and cancels their calls, then joins the threads (bounded).
   void Stop();
-  GatewayStats stats() const;
 
   struct Impl;
 
