@@ -68,6 +68,9 @@ class Daemon {
       auto at = l.find("studio at http://127.0.0.1:");
       if (at != std::string::npos) http_port_ = std::atoi(l.c_str() + at + 27);
     }
+    // Its first admin token: every page below sends it first ({"auth": TOKEN}).
+    std::ifstream token(data_ / "admin.token");
+    std::getline(token, token_);
   }
   ~Daemon() {
     if (pid_ > 0) {
@@ -80,6 +83,7 @@ class Daemon {
   }
   int http_port() const { return http_port_; }
   int pid() const { return pid_; }
+  static inline std::string token_;
 
  private:
   static inline int count_ = 0;
@@ -161,12 +165,15 @@ struct LoopFigures {
   uint64_t ticks = 0, late = 0;
 };
 
+// A page's connection: the studio's WebSocket, then the daemon's token.
+std::unique_ptr<rheo::ws::Client> Open(int port, std::string* error);
+
 // The loop's figures from GetStatus, on a connection of its own (one left idle for a minute
 // without answering the gateway's pings is closed, as it should be).
 LoopFigures Loop(int port) {
   LoopFigures f;
   std::string error;
-  auto c = rheo::ws::Client::Connect("127.0.0.1", port, &error);
+  auto c = Open(port, &error);
   if (!c) {
     std::fprintf(stderr, "GetStatus: %s\n", error.c_str());
     std::exit(1);
@@ -186,6 +193,12 @@ LoopFigures Loop(int port) {
   return f;
 }
 
+std::unique_ptr<rheo::ws::Client> Open(int port, std::string* error) {
+  auto c = rheo::ws::Client::Connect("127.0.0.1", port, error);
+  if (c && !c->SendText(json{{"auth", Daemon::token_}}.dump())) c.reset();
+  return c;
+}
+
 struct Setup {
   std::unique_ptr<rheo::ws::Client> control;
   uint32_t tets = 0;
@@ -194,7 +207,7 @@ struct Setup {
 Setup MakeObject(const Daemon& d, const std::string& strokes, double resolution) {
   Setup s;
   std::string error;
-  s.control = rheo::ws::Client::Connect("127.0.0.1", d.http_port(), &error);
+  s.control = Open(d.http_port(), &error);
   if (!s.control) {
     std::fprintf(stderr, "cannot connect: %s\n", error.c_str());
     return s;
@@ -273,7 +286,7 @@ int main(int argc, char** argv) {
     for (bool binary : {false, true})
       for (bool quantized : {false, true}) {
         std::string error;
-        auto c = rheo::ws::Client::Connect("127.0.0.1", d.http_port(), &error);
+        auto c = Open(d.http_port(), &error);
         c->SendText(json{
             {"id", 1},
             {"method", "rheo.v1.FrameService/WatchFrames"},
@@ -309,7 +322,7 @@ int main(int argc, char** argv) {
     for (int v = 0; v < viewers; ++v)
       threads.emplace_back([&, v] {
         std::string error;
-        auto c = rheo::ws::Client::Connect("127.0.0.1", d.http_port(), &error);
+        auto c = Open(d.http_port(), &error);
         if (!c) return;
         c->SendText(json{{"id", 1},
                          {"method", "rheo.v1.FrameService/WatchFrames"},

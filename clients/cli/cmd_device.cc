@@ -125,6 +125,16 @@ int LeaseRelease(const Global& g, const std::string& id) {
   return s.ok() ? 0 : Fail(s);
 }
 
+int LeaseRevoke(const Global& g) {
+  rheo::v1::RevokeLeaseResponse r;
+  grpc::Status s =
+      Unary<rheo::v1::DeviceService>(g, &DevStub::RevokeLease, rheo::v1::RevokeLeaseRequest(), &r);
+  if (!s.ok()) return Fail(s);
+  std::printf("%s\n", r.holder().empty() ? "no lease was live"
+                                         : ("revoked the lease of " + r.holder()).c_str());
+  return 0;
+}
+
 int DeviceHand(const Global& g, const rheo::v1::SimulatedHandRequest& req, double report_s) {
   rheo::v1::SimulatedHandResponse r;
   grpc::Status s = Unary<rheo::v1::DeviceService>(g, &DevStub::SimulatedHand, req, &r);
@@ -191,6 +201,9 @@ void AddDeviceCommand(CLI::App& app, const Global& g) {
   auto* lease_rel = dev_lease->add_subcommand("release", "give the lease back");
   lease_rel->add_option("LEASE", a->lease_id)->required();
   lease_rel->callback([&g, a] { g_exit_code = LeaseRelease(g, a->lease_id); });
+  dev_lease->add_subcommand("revoke", "admin: end whoever's lease is live")->callback([&g] {
+    g_exit_code = LeaseRevoke(g);
+  });
   auto* dev_push = device->add_subcommand(
       "push",
       "sim-spidar-g: the emulated hand presses the tool into an object (the one below the tool, "

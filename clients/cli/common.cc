@@ -2,10 +2,12 @@
 #include <google/protobuf/util/json_util.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <sstream>
 
+#include "rheo/client/channel.h"
 #include "rheoctl.h"
 
 namespace rheoctl {
@@ -54,9 +56,31 @@ std::string ToJson(const google::protobuf::Message& m, bool pretty) {
 }
 
 std::shared_ptr<grpc::Channel> Connect(const Global& g) {
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(256 << 20);
-  return grpc::CreateCustomChannel(g.server, grpc::InsecureChannelCredentials(), args);
+  rheo::client::ChannelOptions o;
+  o.target = g.server;
+  std::string error;
+  if (!g.token.empty()) {
+    o.token = g.token;
+  } else if (!g.token_file.empty()) {
+    o.token = rheo::client::ReadTokenFile(g.token_file, &error);
+  } else if (const char* env = std::getenv("RHEO_TOKEN"); env && *env) {
+    o.token = env;
+  } else {
+    // The local daemon's admin token, when this user can read it (else no token: the daemon
+    // then answers UNAUTHENTICATED saying how to give one).
+    o.token = rheo::client::ReadTokenFile(rheo::client::DefaultAdminTokenPath(g.data_dir), nullptr);
+  }
+  o.tls_ca_file = g.tls_ca;
+  o.tls_cert_file = g.tls_cert;
+  o.tls_key_file = g.tls_key;
+  o.tls_server_name = g.tls_server_name;
+  std::shared_ptr<grpc::Channel> channel;
+  if (error.empty()) channel = rheo::client::Connect(o, &error);
+  if (!channel) {
+    std::cerr << "INVALID_ARGUMENT: " << error << "\n";
+    std::exit(3);
+  }
+  return channel;
 }
 
 void SetDeadline(grpc::ClientContext& ctx, const Global& g, double default_s) {

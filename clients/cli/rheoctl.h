@@ -20,6 +20,13 @@ namespace rheoctl {
 struct Global {
   std::string server = "127.0.0.1:50051";
   double timeout_s = 0.0;  // 0: 5 s for quick calls, 300 s for object creation
+  // The access token: --token, else --token-file, else $RHEO_TOKEN, else the local daemon's
+  // admin token (DATA_DIR/admin.token, DATA_DIR from --data-dir or rheod's default).
+  std::string token;
+  std::string token_file;
+  std::string data_dir;
+  // TLS: the CA that signed rheod's certificate; a client certificate for mutual TLS.
+  std::string tls_ca, tls_cert, tls_key, tls_server_name;
 };
 
 /// Exit code of the subcommand that ran.
@@ -63,5 +70,6 @@ void AddSceneCommand(CLI::App& app, const Global& g);    // cmd_scene.cc
 void AddParamCommand(CLI::App& app, const Global& g);    // cmd_param.cc
 void AddDeviceCommand(CLI::App& app, const Global& g);   // cmd_device.cc
 void AddContourCommand(CLI::App& app, const Global& g);  // cmd_contour.cc
+void AddTokenCommands(CLI::App& app, const Global& g);   // cmd_token.cc: token, audit, whoami
 
 }  // namespace rheoctl

@@ -20,8 +20,9 @@ enum class ErrorCode {
   kUnimplemented,
   kUnavailable,
   kPermissionDenied,
-  kDataLoss,  // stored or transmitted data is corrupt
-  kInternal,  // a bug or broken invariant
+  kUnauthenticated,  // no valid credential
+  kDataLoss,         // stored or transmitted data is corrupt
+  kInternal,         // a bug or broken invariant
 };
 
 const char* ErrorCodeName(ErrorCode code);

@@ -5,22 +5,28 @@
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
+#include <openssl/rand.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/signal_set.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <fstream>
+#include <functional>
 #include <limits>
 #include <mutex>
+#include <sstream>
 #include <thread>
 
 #include "daemon/api/decode_errors.h"
@@ -28,6 +34,7 @@
 #include "daemon/loop/engine.h"
 #include "daemon/loop/frame_hub.h"
 #include "daemon/loop/tick_cost.h"
+#include "daemon/net/tcp_relay.h"
 #include "daemon/web/gateway.h"
 
 #ifndef RHEO_VERSION
@@ -78,6 +85,9 @@ struct Flags {
   std::string http = "127.0.0.1:8080";  // the studio's gateway, or "off"
   std::string web_root;                 // "": clients/web of the source tree
   int http_connections = 256;
+  // TLS for gRPC and the studio (wss/https); with a client CA, client certificates are required.
+  std::string tls_cert, tls_key, tls_client_ca;
+  bool insecure = false;  // allow plaintext on a non-loopback address
 };
 
 // Holds an exclusive lock on the data directory so two daemons never share one store.
@@ -130,6 +140,16 @@ std::string DefaultDeviceConfig(const char* argv0) {
   return installed.string();
 }
 
+// The studio's files: next to an installed rheod (share/rheo/web), else the source tree's.
+std::filesystem::path DefaultWebRoot() {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  const fs::path installed = exe.parent_path().parent_path() / "share/rheo/web";
+  if (!ec && fs::exists(installed / "index.html", ec)) return installed;
+  return fs::path(RHEO_SOURCE_WEB);
+}
+
 // True for addresses only this machine can reach: 127.0.0.0/8, ::1, localhost, unix sockets.
 bool IsLoopbackListen(const std::string& listen) {
   if (listen.rfind("unix:", 0) == 0 || listen.rfind("unix-abstract:", 0) == 0) return true;
@@ -137,6 +157,32 @@ bool IsLoopbackListen(const std::string& listen) {
   if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
     host = host.substr(1, host.size() - 2);
   return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+}
+
+std::string ReadWhole(const std::string& path, std::string& error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    error = "cannot read " + path + ": " + std::strerror(errno);
+    return "";
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// The first admin token, readable only by this user: DATA_DIR/admin.token (mode 0600).
+bool WriteTokenFile(const std::string& path, const std::string& token, std::string& error) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+  if (fd < 0) {
+    error = "cannot write " + path + ": " + std::strerror(errno);
+    return false;
+  }
+  const std::string line = token + "\n";
+  const bool ok = ::fchmod(fd, 0600) == 0 &&
+                  ::write(fd, line.data(), line.size()) == static_cast<ssize_t>(line.size());
+  if (!ok) error = "cannot write " + path + ": " + std::strerror(errno);
+  ::close(fd);
+  return ok;
 }
 
 std::string DefaultDataDir() {
@@ -218,11 +264,20 @@ int main(int argc, char** argv) {
                  "the browser studio and its WebSocket: host:port (port 0 = any free) or off")
       ->capture_default_str();
   app.add_option("--web-root", flags.web_root,
-                 "the studio's files (default: clients/web of the source tree)");
+                 "the studio's files (default: share/rheo/web of the install, else clients/web of "
+                 "the source tree)");
   app.add_option("--http-connections", flags.http_connections,
                  "most WebSocket connections (studio pages and viewers) at once")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
+  app.add_option("--tls-cert", flags.tls_cert,
+                 "PEM certificate (chain) for gRPC and the studio (https/wss); needs --tls-key");
+  app.add_option("--tls-key", flags.tls_key, "PEM private key of --tls-cert");
+  app.add_option("--tls-client-ca", flags.tls_client_ca,
+                 "PEM CA: clients must present a certificate it signed (mutual TLS)");
+  app.add_flag("--insecure", flags.insecure,
+               "allow plaintext on a non-loopback --listen or --http (tokens then cross the "
+               "network readable; warned every minute)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -256,6 +311,77 @@ int main(int argc, char** argv) {
   spdlog::info("object store {} holds {} objects, {:.1f} of {} MB", db_path,
                stored.ok() ? *stored : 0, static_cast<double>((*store)->used_bytes()) / 1e6,
                flags.store_quota_mb);
+  // Who may do what: the tokens (hashes) are in the store. A first start writes an admin token
+  // that only this user can read, so local use stays one command.
+  TokenRegistry tokens(store->get());
+  if (rheo::Status s = tokens.Load(); !s.ok()) {
+    spdlog::error("{}", s.error().message);
+    return 1;
+  }
+  const std::string admin_token_path =
+      (std::filesystem::path(flags.data_dir) / "admin.token").string();
+  if (tokens.empty()) {
+    auto made = tokens.Create("admin", Role::kAdmin, 0.0);
+    std::string err;
+    if (!made.ok() || !WriteTokenFile(admin_token_path, made->token, err)) {
+      spdlog::error("cannot make the first admin token: {}",
+                    made.ok() ? err : made.error().message);
+      return 1;
+    }
+    spdlog::info(
+        "first start: wrote the admin token to {} (mode 0600); rheoctl on this machine reads it, "
+        "and `rheoctl token create --role viewer|operator|admin` makes tokens for others",
+        admin_token_path);
+  } else if (std::filesystem::exists(admin_token_path)) {
+    spdlog::info("admin token in {}", admin_token_path);
+  }
+
+  // TLS: read once, for gRPC and the studio.
+  const bool tls = !flags.tls_cert.empty() || !flags.tls_key.empty();
+  std::string tls_cert_pem, tls_key_pem, tls_ca_pem;
+  if (tls) {
+    std::string err;
+    if (flags.tls_cert.empty() || flags.tls_key.empty()) {
+      spdlog::error("TLS needs both --tls-cert FILE and --tls-key FILE");
+      return 1;
+    }
+    tls_cert_pem = ReadWhole(flags.tls_cert, err);
+    if (err.empty()) tls_key_pem = ReadWhole(flags.tls_key, err);
+    if (err.empty() && !flags.tls_client_ca.empty())
+      tls_ca_pem = ReadWhole(flags.tls_client_ca, err);
+    if (!err.empty()) {
+      spdlog::error("{}", err);
+      return 1;
+    }
+  } else if (!flags.tls_client_ca.empty()) {
+    spdlog::error("--tls-client-ca needs --tls-cert and --tls-key (mutual TLS is TLS)");
+    return 1;
+  }
+  for (const auto& [flag, address] :
+       {std::pair<const char*, std::string>{"--listen", flags.listen}, {"--http", flags.http}}) {
+    // The studio's gateway serves plaintext only: TLS covers gRPC, not --http.
+    const bool covered = tls && std::string(flag) == "--listen";
+    if (address == "off" || covered || IsLoopbackListen(address)) continue;
+    if (!flags.insecure && std::string(flag) == "--http") {
+      spdlog::error(
+          "--http {} is not a loopback address, and the studio's gateway serves plaintext only: "
+          "tokens and sketches would cross the network readable. Serve it on 127.0.0.1 and "
+          "reach it through a TLS reverse proxy or an SSH tunnel (docs/security.md), or accept "
+          "the risk with --insecure",
+          address);
+      return 1;
+    }
+    if (!flags.insecure) {
+      spdlog::error(
+          "{} {} is not a loopback address and there is no TLS: tokens and every sketch would "
+          "cross the network in plaintext. Give a certificate (--tls-cert server.pem --tls-key "
+          "server.key; docs/security.md shows how to make one), listen on 127.0.0.1, or accept "
+          "the risk with --insecure",
+          flag, address);
+      return 1;
+    }
+  }
+
   const int workers = flags.workers > 0
                           ? flags.workers
                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()) - 1);
@@ -332,6 +458,7 @@ int main(int argc, char** argv) {
   ctx.device = device_kind;
   ctx.device_link = device.get();
   ctx.leases = &leases;
+  ctx.tokens = &tokens;
   ctx.started = std::chrono::steady_clock::now();
   ctx.shutting_down = &shutting_down;
   ctx.store = store->get();
@@ -351,6 +478,7 @@ int main(int argc, char** argv) {
           ? fmt::format("the simulation may take {:.0f} us of each tick", ctx.sim_budget_ns * 1e-3)
           : std::string("no admission by cost (--sim-budget 0)"));
 
+  AuthServiceImpl auth_service(ctx);
   DaemonServiceImpl daemon_service(ctx);
   FrameServiceImpl frame_service(ctx);
   SceneServiceImpl scene_service(ctx);
@@ -361,11 +489,45 @@ int main(int argc, char** argv) {
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
   int port = 0;
-  builder.AddListeningPort(flags.listen, grpc::InsecureServerCredentials(), &port);
-  // Without SO_REUSEPORT a second daemon cannot bind the same port and split the clients, and
-  // gRPC opens no extra listener (with it, port 0 gets one more socket on another free port).
+  // Every port checks every call against the role table (AuthProcessor) before any handler:
+  // TLS when given, else local credentials (loopback only: gRPC refuses other peers). gRPC
+  // cannot check tokens on plaintext credentials, so --insecure on a non-loopback address is a
+  // relay onto a local port (below), never an unchecked one.
+  auto processor = std::make_shared<AuthProcessor>(tokens, store->get());
+  SetCallerTokens(&tokens);
+  auto port_credentials = [&](bool local_tcp) {
+    std::shared_ptr<grpc::ServerCredentials> creds;
+    if (tls && local_tcp) {
+      grpc::SslServerCredentialsOptions ssl(
+          tls_ca_pem.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                             : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+      ssl.pem_root_certs = tls_ca_pem;
+      ssl.pem_key_cert_pairs.push_back({tls_key_pem, tls_cert_pem});
+      creds = grpc::SslServerCredentials(ssl);
+    } else {
+      creds = grpc::experimental::LocalServerCredentials(local_tcp ? LOCAL_TCP : UDS);
+    }
+    creds->SetAuthMetadataProcessor(processor);
+    return creds;
+  };
+  const bool relay_insecure = !tls && !IsLoopbackListen(flags.listen);
+  builder.AddListeningPort(relay_insecure ? std::string("127.0.0.1:0") : flags.listen,
+                           port_credentials(true), &port);
+  // The studio's gateway calls the API as a client of this server, on a socket of its own that
+  // checks tokens as every port does (an abstract unix socket: nothing on disk to clean up).
+  std::string gateway_socket;
+  {
+    unsigned char r[8];
+    RAND_bytes(r, sizeof r);
+    char name[64];
+    std::snprintf(name, sizeof name, "unix-abstract:rheod-%d-%02x%02x%02x%02x%02x%02x%02x%02x",
+                  static_cast<int>(::getpid()), r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]);
+    gateway_socket = name;
+  }
+  if (flags.http != "off") builder.AddListeningPort(gateway_socket, port_credentials(false));
   builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.SetMaxReceiveMessageSize(64 << 20);
+  builder.RegisterService(&auth_service);
   builder.RegisterService(&daemon_service);
   builder.RegisterService(&frame_service);
   builder.RegisterService(&scene_service);
@@ -375,6 +537,7 @@ int main(int argc, char** argv) {
     // Undecodable requests: INVALID_ARGUMENT naming the expected message, not an empty INTERNAL.
     std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> chain;
     chain.push_back(std::make_unique<DecodeErrorInterceptorFactory>());
+    chain.push_back(std::make_unique<AuditInterceptorFactory>(store->get()));
     builder.experimental().SetInterceptorCreators(std::move(chain));
   }
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
@@ -388,29 +551,45 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::string host = flags.listen.substr(0, flags.listen.rfind(':'));
+  // --insecure on a non-loopback address: plaintext clients reach the checked local port
+  // through a relay (tokens are still checked; they cross the network readable).
+  std::unique_ptr<rheo::daemon::net::TcpRelay> relay;
+  if (relay_insecure) {
+    relay = std::make_unique<rheo::daemon::net::TcpRelay>(flags.listen,
+                                                          "127.0.0.1:" + std::to_string(port));
+    if (std::string err = relay->Start(); !err.empty()) {
+      spdlog::error("{}; choose another --listen host:port", err);
+      server->Shutdown(std::chrono::system_clock::now());
+      hub.Stop();
+      engine.Stop();
+      return 1;
+    }
+    port = relay->port();
+  }
   ctx.listen_address = host + ":" + std::to_string(port);
-  spdlog::info("rheod {} listening on {} (data dir {}, device {})", RHEO_VERSION,
-               ctx.listen_address, flags.data_dir, flags.device);
-  if (!IsLoopbackListen(flags.listen))
-    spdlog::warn(
-        "--listen {} is not a loopback address: the whole rheo.v1 API (the device, the scene, "
-        "every stored object) is open to anyone who can reach this port, with no "
-        "authentication, in plaintext; listen on 127.0.0.1 unless this network is trusted",
-        flags.listen);
+  spdlog::info("rheod {} listening on {} (data dir {}, device {}, {})", RHEO_VERSION,
+               ctx.listen_address, flags.data_dir, flags.device,
+               tls ? (tls_ca_pem.empty() ? "TLS" : "mutual TLS")
+                   : (relay_insecure ? "PLAINTEXT (--insecure)" : "loopback only"));
 
-  // The studio: its files and the WebSocket bridge onto this server's own API (in-process, so
-  // every limit, validation and status code is the gRPC one).
+  // The studio: its files and the WebSocket bridge onto this server's own API (a gRPC client of
+  // the gateway socket, so every token check, limit, validation and status code is the gRPC one).
   std::unique_ptr<rheo::daemon::web::Gateway> gateway;
   if (flags.http != "off") {
     rheo::daemon::web::GatewayOptions web;
     web.address = flags.http;
-    web.web_root = flags.web_root.empty() ? std::filesystem::path(RHEO_SOURCE_WEB)
-                                          : std::filesystem::path(flags.web_root);
+    web.web_root =
+        flags.web_root.empty() ? DefaultWebRoot() : std::filesystem::path(flags.web_root);
     web.max_connections = flags.http_connections;
     grpc::ChannelArguments channel_args;
     channel_args.SetMaxReceiveMessageSize(64 << 20);
-    gateway =
-        std::make_unique<rheo::daemon::web::Gateway>(web, server->InProcessChannel(channel_args));
+    // A slow page must hold back its own stream at the daemon (whose frame service then skips
+    // frames), not queue them in this channel: a small HTTP/2 window, never grown by BDP probes.
+    channel_args.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
+    channel_args.SetInt(GRPC_ARG_HTTP2_STREAM_LOOKAHEAD_BYTES, 16 * 1024);
+    gateway = std::make_unique<rheo::daemon::web::Gateway>(
+        web, grpc::CreateCustomChannel(gateway_socket, grpc::experimental::LocalCredentials(UDS),
+                                       channel_args));
     if (grpc::Status s = gateway->Start(); !s.ok()) {
       spdlog::error("{}", s.error_message());
       server->Shutdown(std::chrono::system_clock::now());
@@ -429,13 +608,25 @@ int main(int argc, char** argv) {
     std::string web_host = flags.http.substr(0, flags.http.rfind(':'));
     spdlog::info("studio at http://{}:{}/ (watch-only viewers: http://{}:{}/?view)", web_host,
                  gateway->port(), web_host, gateway->port());
-    if (!IsLoopbackListen(flags.http))
-      spdlog::warn(
-          "--http {} is not a loopback address: the studio (and through it the whole API) is "
-          "open to anyone who can reach this port; serve it on 127.0.0.1 unless this network "
-          "is trusted",
-          flags.http);
   }
+  // Plaintext where others can listen: said once a minute, so nobody forgets it is on.
+  boost::asio::steady_timer insecure_warning(io);
+  std::function<void()> warn_insecure = [&] {
+    std::string where;
+    if (relay_insecure) where = "--listen " + flags.listen;
+    if (flags.http != "off" && !IsLoopbackListen(flags.http))
+      where += (where.empty() ? "" : " and ") + std::string("--http ") + flags.http;
+    if (where.empty()) return;
+    spdlog::warn(
+        "--insecure: {} serve plaintext on a non-loopback address; tokens, sketches and frames "
+        "cross the network readable (give --tls-cert/--tls-key instead)",
+        where);
+    insecure_warning.expires_after(std::chrono::minutes(1));
+    insecure_warning.async_wait([&](const boost::system::error_code& ec) {
+      if (!ec) warn_insecure();
+    });
+  };
+  warn_insecure();
 
   // Shutdown, in the safe order and bounded: the device to minimum tension first, then the mesh
   // jobs are cancelled, the server and the loop stop. A job or a handler that does not stop in
@@ -467,6 +658,8 @@ int main(int argc, char** argv) {
       spdlog::default_logger()->flush();
       std::_Exit(0);
     });
+    insecure_warning.cancel();
+    if (relay) relay->Stop();
     jobs.CancelAll();              // running mesh jobs are asked to stop
     if (gateway) gateway->Stop();  // studio pages: their calls cancelled, connections closed
     server->GetHealthCheckService()->SetServingStatus(false);

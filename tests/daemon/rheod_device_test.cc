@@ -312,7 +312,7 @@ TEST(RheodDevice, LeaseHasOneHolderAndTheEmergencyStopHoldsUntilTheHolderClearsI
     req.set_client_name("alice");
     req.set_duration_s(60);
     ASSERT_TRUE(dev->AcquireLease(&ctx, req, &lease).ok());
-    EXPECT_EQ(lease.holder(), "alice");
+    EXPECT_EQ(lease.holder(), "alice (token admin)");
     EXPECT_GT(lease.expires_in_s(), 50.0);
   }
   {
@@ -325,7 +325,7 @@ TEST(RheodDevice, LeaseHasOneHolderAndTheEmergencyStopHoldsUntilTheHolderClearsI
     EXPECT_EQ(s.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
     EXPECT_NE(s.error_message().find("alice"), std::string::npos) << s.error_message();
   }
-  EXPECT_EQ(Status(*dev).lease_holder(), "alice");
+  EXPECT_EQ(Status(*dev).lease_holder(), "alice (token admin)");
   // Anyone may stop: every string at minimum tension, the fault spelled.
   {
     grpc::ClientContext ctx;

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "rheo/client/channel.h"
 #include "rheo/v1/daemon.grpc.pb.h"
 
 extern char** environ;
@@ -134,7 +135,18 @@ RheodProcess::~RheodProcess() {
 }
 
 std::shared_ptr<grpc::Channel> RheodProcess::channel() const {
-  return grpc::CreateChannel(address_, grpc::InsecureChannelCredentials());
+  return channel(admin_token());
+}
+
+std::shared_ptr<grpc::Channel> RheodProcess::channel(const std::string& token) const {
+  rheo::client::ChannelOptions o;
+  o.target = address_;
+  o.token = token;
+  return rheo::client::Connect(o, nullptr);
+}
+
+std::string RheodProcess::admin_token() const {
+  return rheo::client::ReadTokenFile(data_dir_ + "/admin.token", nullptr);
 }
 
 bool RheodProcess::WaitForLog(const std::string& needle, std::chrono::milliseconds timeout) {

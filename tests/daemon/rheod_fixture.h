@@ -37,7 +37,12 @@ class RheodProcess {
   const std::string& data_dir() const { return data_dir_; }
   /// The child's process id (-1 once it exited and was reaped).
   int pid() const { return pid_; }
+  /// A channel carrying the daemon's first admin token (DATA_DIR/admin.token).
   std::shared_ptr<grpc::Channel> channel() const;
+  /// A channel carrying `token` ("" carries none).
+  std::shared_ptr<grpc::Channel> channel(const std::string& token) const;
+  /// The admin token rheod wrote on its first start.
+  std::string admin_token() const;
 
   /// Sends SIGTERM and waits; returns the exit code (or 128 + signal), -1 on timeout.
   int Terminate(std::chrono::milliseconds timeout, std::chrono::milliseconds* took = nullptr);

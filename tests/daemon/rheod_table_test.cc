@@ -16,6 +16,7 @@
 #include <sstream>
 #include <thread>
 
+#include "rheo/v1/auth.pb.h"
 #include "rheo/v1/daemon.grpc.pb.h"
 #include "rheo/v1/device.grpc.pb.h"
 #include "rheo/v1/frames.grpc.pb.h"
@@ -203,9 +204,10 @@ TEST_P(RheodTable, EveryMethodEveryFieldAtItsWorstGetsAClearShortAnswer) {
         v1::ToolInput::descriptor()})
     ASSERT_NE(any, nullptr);
   const pb::DescriptorPool* pool = pb::DescriptorPool::generated_pool();
+  ASSERT_NE(v1::Identity::descriptor(), nullptr);  // links auth.proto's descriptors here
   const std::vector<std::string> services = {"rheo.v1.DaemonService", "rheo.v1.FrameService",
-                                             "rheo.v1.SceneService", "rheo.v1.ObjectService",
-                                             "rheo.v1.DeviceService"};
+                                             "rheo.v1.SceneService",  "rheo.v1.ObjectService",
+                                             "rheo.v1.DeviceService", "rheo.v1.AuthService"};
   const std::set<grpc::StatusCode> clear = {
       grpc::StatusCode::OK,
       grpc::StatusCode::CANCELLED,  // we cancel a stream after two responses
@@ -282,7 +284,7 @@ TEST_P(RheodTable, EveryMethodEveryFieldAtItsWorstGetsAClearShortAnswer) {
       }
     }
   }
-  EXPECT_EQ(methods, 23);
+  EXPECT_EQ(methods, 29);
   std::ostringstream codes;
   for (auto [code, n] : by_code) codes << " code " << code << ": " << n;
   std::printf("--device %s: %d methods, %d cases;%s\n", GetParam(), methods, cases,

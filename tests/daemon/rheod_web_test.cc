@@ -10,6 +10,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 
 #include "rheo/v1/daemon.grpc.pb.h"
@@ -28,10 +29,17 @@ using namespace std::chrono_literals;
 // A connection with call bookkeeping: replies are sorted by call id as they arrive.
 class Rpc {
  public:
-  explicit Rpc(int port, const std::string& origin = "", int receive_buffer = 0) {
+  // Sends `token` first ({"auth": ...}); the daemon's admin token unless given ("" sends none).
+  explicit Rpc(const RheodProcess& d, const std::string& origin = "", int receive_buffer = 0,
+               std::optional<std::string> token = std::nullopt) {
     std::string error;
-    client_ = ws::Client::Connect("127.0.0.1", port, &error, origin, "/rpc", receive_buffer);
+    client_ =
+        ws::Client::Connect("127.0.0.1", d.http_port(), &error, origin, "/rpc", receive_buffer);
     EXPECT_TRUE(client_) << error;
+    const std::string t = token ? *token : d.admin_token();
+    if (client_ && !t.empty()) {
+      EXPECT_TRUE(client_->SendText(json{{"auth", t}}.dump()));
+    }
   }
   bool ok() const { return client_ != nullptr; }
   ws::Client& client() { return *client_; }
@@ -151,7 +159,7 @@ TEST(RheodWeb, ServesTheStudioFilesAndRefusesPathsOutsideIt) {
 TEST(RheodWeb, UnaryCallsCarryTheApiAndItsStatusCodesUnchanged) {
   RheodProcess d;
   ASSERT_TRUE(d.started());
-  Rpc rpc(d.http_port());
+  Rpc rpc(d);
   ASSERT_TRUE(rpc.ok());
   auto status = rpc.Call(1, "rheo.v1.DaemonService/GetStatus");
   ASSERT_EQ(Code(status), 0) << status.status;
@@ -209,7 +217,7 @@ TEST(RheodWeb, UnaryCallsCarryTheApiAndItsStatusCodesUnchanged) {
 TEST(RheodWeb, MalformedMessagesAreAnsweredInWordsAndTheConnectionStaysUsable) {
   RheodProcess d;
   ASSERT_TRUE(d.started());
-  Rpc rpc(d.http_port());
+  Rpc rpc(d);
   ASSERT_TRUE(rpc.ok());
   struct Case {
     std::string text;
@@ -270,7 +278,7 @@ TEST(RheodWeb, MalformedMessagesAreAnsweredInWordsAndTheConnectionStaysUsable) {
 TEST(RheodWeb, StreamsProgressAndQuantisedFramesAndCancels) {
   RheodProcess d;
   ASSERT_TRUE(d.started());
-  Rpc rpc(d.http_port());
+  Rpc rpc(d);
   ASSERT_TRUE(rpc.ok());
   // A server stream: progress by stage, the object last.
   auto made = rpc.Call(1, "rheo.v1.ObjectService/CreateObject", CreateDiskRequest(true));
@@ -348,10 +356,10 @@ TEST(RheodWeb, StreamsProgressAndQuantisedFramesAndCancels) {
 TEST(RheodWeb, ASlowViewerSkipsFramesAndNeverSlowsAFastOne) {
   RheodProcess d;
   ASSERT_TRUE(d.started());
-  Rpc setup(d.http_port());
+  Rpc setup(d);
   ASSERT_EQ(Code(setup.Call(1, "rheo.v1.ObjectService/CreateObject", CreateDiskRequest(true))), 0);
-  Rpc fast(d.http_port());
-  Rpc slow(d.http_port(), "", 32 * 1024);  // a viewer on a slow link: a small receive window
+  Rpc fast(d);
+  Rpc slow(d, "", 32 * 1024);  // a viewer on a slow link: a small receive window
   const json watch = {{"rateHz", 50}, {"positions", true}, {"quantized", true}};
   fast.Open(1, "rheo.v1.FrameService/WatchFrames", watch);
   slow.Open(1, "rheo.v1.FrameService/WatchFrames", watch);
@@ -391,7 +399,7 @@ TEST(RheodWeb, ASlowViewerSkipsFramesAndNeverSlowsAFastOne) {
 TEST(RheodWeb, TheToolStreamRunsBothWaysThroughTheBridge) {
   RheodProcess d({"--device", "network"});
   ASSERT_TRUE(d.started());
-  Rpc rpc(d.http_port());
+  Rpc rpc(d);
   auto lease = rpc.Call(1, "rheo.v1.DeviceService/AcquireLease",
                         {{"clientName", "browser"}, {"durationS", 10}});
   ASSERT_EQ(Code(lease), 0) << lease.status;
@@ -424,7 +432,7 @@ TEST(RheodWeb, ClosingThePageCancelsItsCallsAndManyPagesConnect) {
   {
     std::vector<std::unique_ptr<Rpc>> pages;
     for (int i = 0; i < 8; ++i) {
-      pages.push_back(std::make_unique<Rpc>(d.http_port()));
+      pages.push_back(std::make_unique<Rpc>(d));
       pages.back()->Open(1, "rheo.v1.FrameService/WatchFrames", {{"rateHz", 30}});
     }
     for (auto& p : pages) {
@@ -432,7 +440,7 @@ TEST(RheodWeb, ClosingThePageCancelsItsCallsAndManyPagesConnect) {
       EXPECT_TRUE(p->client().Read(&m, 5s)) << p->client().error();
     }
   }  // closed without a word, as a browser tab does
-  Rpc rpc(d.http_port());
+  Rpc rpc(d);
   int clients = -1;
   for (int i = 0; i < 100 && clients != 0; ++i) {
     clients = rpc.Call(10 + i, "rheo.v1.DaemonService/GetStatus").messages.at(0)["frameClients"];

@@ -5,7 +5,7 @@
 //   node tests/web/<test>.mjs --rheod PATH --web-root clients/web [--device none|sim-spidar-g|network]
 
 import { spawn } from 'node:child_process';
-import { mkdtempSync, rmSync } from 'node:fs';
+import { mkdtempSync, readFileSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join, dirname, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -111,6 +111,9 @@ export async function startDaemon(args, { device = 'none', extra = [], httpPort 
     if (d.exited === null) proc.kill('SIGKILL');
     throw e;
   }
+  // The admin token rheod wrote on its first start: pages open with it unless told otherwise.
+  d.token = readFileSync(join(dataDir, 'admin.token'), 'utf8').trim();
+  lastToken = d.token;
   return d;
 }
 
@@ -132,8 +135,15 @@ export async function launchBrowser(args) {
   return chromium.launch({ executablePath: args.chromium, headless: true, args: CHROMIUM_ARGS });
 }
 
-/** A page of the studio, with console errors collected (they fail the test). */
-export async function openPage(browser, url, { width = 1440, height = 900 } = {}) {
+let lastToken = '';
+
+/**
+ * A page of the studio, with console errors collected (they fail the test). It opens with the
+ * last started daemon's admin token in the URL fragment unless `token` is given ('' for none).
+ */
+export async function openPage(browser, url, { width = 1440, height = 900, token = undefined } = {}) {
+  const t = token === undefined ? lastToken : token;
+  if (t) url += `#token=${encodeURIComponent(t)}`;
   const context = await browser.newContext({ viewport: { width, height }, deviceScaleFactor: 1 });
   const page = await context.newPage();
   page.errors = [];

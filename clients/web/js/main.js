@@ -5,10 +5,25 @@
 import { Rpc, rpcUrl, Code } from './rpc.js';
 import { View3D } from './view3d.js';
 
-const viewOnly = new URLSearchParams(location.search).has('view');
+let viewOnly = new URLSearchParams(location.search).has('view');
 const $ = (sel) => document.querySelector(sel);
 
-const rpc = new Rpc(rpcUrl());
+// The access token: from the URL fragment (#token=..., never the query, so it reaches no server
+// log), else the one this browser used here before. The fragment is then removed from the
+// address bar.
+const TOKEN_KEY = 'rheo.token';
+function takeToken() {
+  const m = location.hash.match(/(?:^#|&)token=([^&]+)/);
+  if (m) {
+    const t = decodeURIComponent(m[1]);
+    localStorage.setItem(TOKEN_KEY, t);
+    history.replaceState(null, '', location.pathname + location.search);
+    return t;
+  }
+  return localStorage.getItem(TOKEN_KEY) || '';
+}
+const rpc = new Rpc(rpcUrl(), takeToken());
+let studio = null; // the editing panels, in studio mode (below)
 const view = new View3D($('#view'), $('#view-overlay'));
 
 // ---------------------------------------------------------------------------------------------
@@ -136,7 +151,59 @@ setInterval(pollStatus, 1500);
 // ---------------------------------------------------------------------------------------------
 // Studio mode: the editing panels exist only here.
 
-let studio = null;
+// Who this page is: a viewer's token gets the watch-only page (the daemon refuses its edits
+// whatever a page does); no valid token gets the sign-in form.
+async function whoAmI() {
+  await rpc.ready();
+  try {
+    return await rpc.call('rheo.v1.AuthService/WhoAmI', {});
+  } catch (e) {
+    return { error: e };
+  }
+}
+
+// The sign-in form exists only on a page that needs it (a watch-only page has no inputs).
+function showSignIn(reason) {
+  const form = document.createElement('form');
+  form.id = 'sign-in';
+  form.className = 'sign-in';
+  form.setAttribute('aria-label', 'Sign in');
+  form.innerHTML = `
+    <h2>This daemon needs an access token</h2>
+    <p id="sign-in-reason"></p>
+    <p>Ask the daemon's admin for one (<code>rheoctl token create --role operator</code> makes a
+      token that may draw and touch; <code>--role viewer</code> one that may only watch), or open
+      the address they gave you, which ends in <code>#token=…</code>.</p>
+    <label>Token <input id="sign-in-token" type="password" autocomplete="off" spellcheck="false"
+      aria-label="Access token"></label>
+    <button type="submit">Use this token</button>`;
+  form.querySelector('#sign-in-reason').textContent = reason;
+  form.addEventListener('submit', (ev) => {
+    ev.preventDefault();
+    const t = form.querySelector('#sign-in-token').value.trim();
+    if (!t) return;
+    localStorage.setItem(TOKEN_KEY, t);
+    location.reload();
+  });
+  document.body.append(form);
+}
+
+const identity = await whoAmI();
+const roleName = { ROLE_VIEWER: 'viewer', ROLE_OPERATOR: 'operator', ROLE_ADMIN: 'admin' };
+if (identity.error) {
+  viewOnly = true;
+  showSignIn(
+    identity.error.code === Code.UNAUTHENTICATED
+      ? identity.error.message
+      : `The daemon did not say who this token is: ${identity.error.message}`,
+  );
+} else if (identity.role === 'ROLE_VIEWER') {
+  viewOnly = true;
+}
+window.rheo.viewOnly = viewOnly;
+window.rheo.identity = identity.error ? null : { name: identity.tokenName, role: roleName[identity.role] || 'none' };
+$('#who').textContent = identity.error ? 'not signed in' : `${identity.tokenName} (${roleName[identity.role] || '?'})`;
+
 const template = $('#studio-panels');
 if (viewOnly) {
   template.remove();

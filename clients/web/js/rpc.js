@@ -5,6 +5,7 @@
 //   open bidi {"id": N, "method": "...", "stream": true}, then {"id": N, "write": {...}},
 //             half-close {"id": N, "end": true}
 //   cancel    {"id": N, "cancel": true}
+//   token     {"auth": "TOKEN"}: sent first on every connection; the daemon checks it on each call
 //   replies   {"id": N, "message": {...}} (any number), then {"id": N, "status": {code, name, message}}
 //
 // Messages use the protobuf JSON mapping: lowerCamelCase names, enums as strings, 64-bit
@@ -19,8 +20,10 @@ export const Code = Object.freeze({
   DEADLINE_EXCEEDED: 4,
   NOT_FOUND: 5,
   RESOURCE_EXHAUSTED: 8,
+  PERMISSION_DENIED: 7,
   FAILED_PRECONDITION: 9,
   UNAVAILABLE: 14,
+  UNAUTHENTICATED: 16,
 });
 
 /** A call that ended with a non-OK status; `message` is meant for people, shown verbatim. */
@@ -41,9 +44,10 @@ export class RpcError extends Error {
  * "open" after every (re)connection.
  */
 export class Rpc extends EventTarget {
-  constructor(url) {
+  constructor(url, token = '') {
     super();
     this.url = url;
+    this.token = token;
     this.state = 'connecting';
     this.ws = null;
     this.nextId = 1;
@@ -53,6 +57,12 @@ export class Rpc extends EventTarget {
     this.openWaiters = [];
     this.connects = 0;
     this.connect();
+  }
+
+  /** Uses `token` for every call from now on (this connection and the next ones). */
+  setToken(token) {
+    this.token = token;
+    if (this.ws && this.ws.readyState === WebSocket.OPEN) this.ws.send(JSON.stringify({ auth: token }));
   }
 
   get connected() {
@@ -69,6 +79,7 @@ export class Rpc extends EventTarget {
     const ws = new WebSocket(this.url);
     this.ws = ws;
     ws.onopen = () => {
+      if (this.token) ws.send(JSON.stringify({ auth: this.token }));
       this.backoffMs = 250;
       this.connects += 1;
       this.setState('open');

@@ -47,9 +47,11 @@ void FillStatus(const DaemonContext& ctx, const ToolTelemetry& t, v1::DeviceStat
 }
 
 // The lease is needed when someone holds it (or when `always`).
-grpc::Status NeedLease(const DaemonContext& ctx, const std::string& lease_id, bool always) {
+grpc::Status NeedLease(const DaemonContext& ctx, const grpc::ServerContext* context,
+                       const std::string& lease_id, bool always) {
   if (!always && ctx.leases->Holder().first.empty()) return grpc::Status::OK;
-  if (Status s = ctx.leases->Check(lease_id); !s.ok()) return ToGrpc(s.error());
+  if (Status s = ctx.leases->Check(lease_id, CallerOf(context).token_name); !s.ok())
+    return ToGrpc(s.error());
   return grpc::Status::OK;
 }
 
@@ -68,11 +70,13 @@ grpc::Status DeviceServiceImpl::GetDeviceStatus(grpc::ServerContext*,
   return grpc::Status::OK;
 }
 
-grpc::Status DeviceServiceImpl::Calibrate(grpc::ServerContext*, const v1::CalibrateRequest* req,
+grpc::Status DeviceServiceImpl::Calibrate(grpc::ServerContext* context,
+                                          const v1::CalibrateRequest* req,
                                           v1::CalibrateResponse* out) {
   if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
-  if (grpc::Status s = NeedLease(ctx_, req->lease_id(), ctx_.device_link->emergency_stopped());
+  if (grpc::Status s =
+          NeedLease(ctx_, context, req->lease_id(), ctx_.device_link->emergency_stopped());
       !s.ok())
     return s;
   const uint64_t failures = ctx_.engine->tool().calibration_failures;
@@ -88,38 +92,47 @@ grpc::Status DeviceServiceImpl::Calibrate(grpc::ServerContext*, const v1::Calibr
   return grpc::Status::OK;
 }
 
-grpc::Status DeviceServiceImpl::AcquireLease(grpc::ServerContext*,
+grpc::Status DeviceServiceImpl::AcquireLease(grpc::ServerContext* context,
                                              const v1::AcquireLeaseRequest* req, v1::Lease* out) {
   if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (grpc::Status s = CheckLeaseDuration(req->duration_s()); !s.ok()) return s;
-  auto l = ctx_.leases->Acquire(req->client_name(), req->duration_s());
+  auto l =
+      ctx_.leases->Acquire(req->client_name(), CallerOf(context).token_name, req->duration_s());
   if (!l.ok()) return ToGrpc(l.error());
   FillLease(*l, out);
   return grpc::Status::OK;
 }
 
-grpc::Status DeviceServiceImpl::RenewLease(grpc::ServerContext*, const v1::RenewLeaseRequest* req,
-                                           v1::Lease* out) {
+grpc::Status DeviceServiceImpl::RenewLease(grpc::ServerContext* context,
+                                           const v1::RenewLeaseRequest* req, v1::Lease* out) {
   if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (grpc::Status s = CheckLeaseDuration(req->duration_s()); !s.ok()) return s;
-  auto l = ctx_.leases->Renew(req->lease_id(), req->duration_s());
+  auto l = ctx_.leases->Renew(req->lease_id(), CallerOf(context).token_name, req->duration_s());
   if (!l.ok()) return ToGrpc(l.error());
   FillLease(*l, out);
   return grpc::Status::OK;
 }
 
-grpc::Status DeviceServiceImpl::ReleaseLease(grpc::ServerContext*,
+grpc::Status DeviceServiceImpl::ReleaseLease(grpc::ServerContext* context,
                                              const v1::ReleaseLeaseRequest* req,
                                              v1::ReleaseLeaseResponse*) {
   if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
-  if (Status s = ctx_.leases->Release(req->lease_id()); !s.ok()) return ToGrpc(s.error());
+  if (Status s = ctx_.leases->Release(req->lease_id(), CallerOf(context).token_name); !s.ok())
+    return ToGrpc(s.error());
   return grpc::Status::OK;
 }
 
-grpc::Status DeviceServiceImpl::EmergencyStop(grpc::ServerContext*,
+grpc::Status DeviceServiceImpl::RevokeLease(grpc::ServerContext*, const v1::RevokeLeaseRequest*,
+                                            v1::RevokeLeaseResponse* out) {
+  if (!ctx_.device_link) return NoDevice();
+  out->set_holder(ctx_.leases->Revoke());
+  return grpc::Status::OK;
+}
+
+grpc::Status DeviceServiceImpl::EmergencyStop(grpc::ServerContext* context,
                                               const v1::EmergencyStopRequest* req,
                                               v1::EmergencyStopResponse* out) {
   if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
@@ -127,7 +140,8 @@ grpc::Status DeviceServiceImpl::EmergencyStop(grpc::ServerContext*,
   if (req->engage()) {
     ctx_.device_link->EmergencyStop();
   } else {
-    if (grpc::Status s = NeedLease(ctx_, req->lease_id(), /*always=*/true); !s.ok()) return s;
+    if (grpc::Status s = NeedLease(ctx_, context, req->lease_id(), /*always=*/true); !s.ok())
+      return s;
     Command c;
     c.type = Command::Type::kDeviceClear;
     if (grpc::Status s = SubmitAndWait(*ctx_.engine, c); !s.ok()) return s;
@@ -158,7 +172,7 @@ grpc::Status DeviceServiceImpl::ToolStream(
     if (!in.lease_id().empty() && in.lease_id() != lease_id)
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                           "lease_id changed within one stream; open a new stream");
-    if (Status s = ctx_.leases->Check(lease_id); !s.ok())
+    if (Status s = ctx_.leases->Check(lease_id, CallerOf(context).token_name); !s.ok())
       return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
                           "ToolStream needs the control lease: " + s.error().message);
     if (ctx_.shutting_down && ctx_.shutting_down->load())
@@ -197,7 +211,7 @@ grpc::Status DeviceServiceImpl::ToolStream(
   return grpc::Status::OK;
 }
 
-grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext*,
+grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext* context,
                                               const v1::SimulatedHandRequest* req,
                                               v1::SimulatedHandResponse* out) {
   if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
@@ -208,7 +222,7 @@ grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext*,
                         std::string("the simulated hand exists only with --device sim-spidar-g; "
                                     "this rheod runs --device ") +
                             DeviceKindName(ctx_.device_link->kind()));
-  if (grpc::Status s = NeedLease(ctx_, req->lease_id(), false); !s.ok()) return s;
+  if (grpc::Status s = NeedLease(ctx_, context, req->lease_id(), false); !s.ok()) return s;
   switch (req->action_case()) {
     case v1::SimulatedHandRequest::kHold: {
       const auto& p = req->hold().position();

@@ -19,6 +19,7 @@ inline grpc::StatusCode ToGrpcCode(ErrorCode code) {
     case ErrorCode::kUnimplemented: return grpc::StatusCode::UNIMPLEMENTED;
     case ErrorCode::kUnavailable: return grpc::StatusCode::UNAVAILABLE;
     case ErrorCode::kPermissionDenied: return grpc::StatusCode::PERMISSION_DENIED;
+    case ErrorCode::kUnauthenticated: return grpc::StatusCode::UNAUTHENTICATED;
     case ErrorCode::kDataLoss: return grpc::StatusCode::DATA_LOSS;
     case ErrorCode::kInternal: return grpc::StatusCode::INTERNAL;
   }

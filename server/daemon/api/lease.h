@@ -1,4 +1,5 @@
-// The device's control lease: one holder at a time, expiring unless renewed.
+// The device's control lease: one holder at a time, expiring unless renewed. It belongs to the
+// token that acquired it: only that token renews, releases or uses it (an admin may revoke it).
 #pragma once
 
 #include <chrono>
@@ -19,13 +20,15 @@ class LeaseManager {
   using Clock = std::chrono::steady_clock;
   struct Lease {
     std::string id;
-    std::string holder;
+    std::string holder;  // shown to others: "client_name (token NAME)"
+    std::string owner;   // the token's name
     Clock::time_point expires;
   };
 
   /// Grants the lease when free or expired; otherwise FAILED_PRECONDITION naming the holder and
   /// when it expires.
-  Result<Lease> Acquire(const std::string& holder, double duration_s) {
+  Result<Lease> Acquire(const std::string& client_name, const std::string& owner,
+                        double duration_s) {
     std::lock_guard<std::mutex> lock(mutex_);
     const auto now = Clock::now();
     if (Held(now))
@@ -33,29 +36,42 @@ class LeaseManager {
                                 " for another " + Seconds(lease_.expires - now) +
                                 " s; wait for it to expire or ask them to release it");
     lease_.id = NewId();
-    lease_.holder = holder.empty() ? "anonymous" : holder;
+    lease_.owner = owner;
+    lease_.holder = client_name.empty() || client_name == owner
+                        ? "token " + owner
+                        : client_name + " (token " + owner + ")";
     lease_.expires = now + Duration(duration_s);
     return lease_;
   }
 
-  Result<Lease> Renew(const std::string& id, double duration_s) {
+  Result<Lease> Renew(const std::string& id, const std::string& owner, double duration_s) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (Status s = CheckLocked(id); !s.ok()) return s.error();
+    if (Status s = CheckLocked(id, owner); !s.ok()) return s.error();
     lease_.expires = Clock::now() + Duration(duration_s);
     return lease_;
   }
 
-  Status Release(const std::string& id) {
+  Status Release(const std::string& id, const std::string& owner) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (Status s = CheckLocked(id); !s.ok()) return s;
+    if (Status s = CheckLocked(id, owner); !s.ok()) return s;
     lease_ = Lease();
     return Status::Ok();
   }
 
-  /// OK when `id` is the live lease; else FAILED_PRECONDITION saying what to do.
-  Status Check(const std::string& id) const {
+  /// Ends the live lease whoever holds it (an admin's call); the holder's name, or "" if none.
+  std::string Revoke() {
     std::lock_guard<std::mutex> lock(mutex_);
-    return CheckLocked(id);
+    const bool held = Held(Clock::now());
+    std::string holder = held ? lease_.holder : std::string();
+    lease_ = Lease();
+    return holder;
+  }
+
+  /// OK when `id` is the live lease and `owner` the token that holds it; else
+  /// FAILED_PRECONDITION saying what to do (PERMISSION_DENIED for another token's lease id).
+  Status Check(const std::string& id, const std::string& owner) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return CheckLocked(id, owner);
   }
 
   /// Holder's name and seconds left, or "" and 0 when free.
@@ -74,7 +90,7 @@ class LeaseManager {
 
  private:
   bool Held(Clock::time_point now) const { return !lease_.id.empty() && now < lease_.expires; }
-  Status CheckLocked(const std::string& id) const {
+  Status CheckLocked(const std::string& id, const std::string& owner) const {
     const auto now = Clock::now();
     if (id.empty())
       return FailedPrecondition(
@@ -89,6 +105,10 @@ class LeaseManager {
       return FailedPrecondition("lease " + QuoteForMessage(id) +
                                 " has expired or was released; acquire a new one (AcquireLease)");
     }
+    if (owner != lease_.owner)
+      return Error{ErrorCode::kPermissionDenied,
+                   "the live lease belongs to token " + QuoteForMessage(lease_.owner) +
+                       "; a lease is used only by the token that acquired it"};
     return Status::Ok();
   }
   static Clock::duration Duration(double s) {

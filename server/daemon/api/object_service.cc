@@ -136,6 +136,19 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
       });
   if (!job.ok()) return ToGrpc(job.error());
   const std::string job_id = (*job)->id();
+  // Whose job it is (CancelJob lets only them, or an admin, cancel it), until this call ends.
+  {
+    std::lock_guard<std::mutex> lock(requests_mutex_);
+    job_owners_[job_id] = CallerOf(context).token_name;
+  }
+  struct Disown {
+    ObjectServiceImpl* self;
+    std::string id;
+    ~Disown() {
+      std::lock_guard<std::mutex> lock(self->requests_mutex_);
+      self->job_owners_.erase(id);
+    }
+  } disown{this, job_id};
 
   v1::CreateObjectProgress queued;
   queued.set_job_id(job_id);
@@ -208,10 +221,21 @@ grpc::Status ObjectServiceImpl::Replay(const StoredObject& stored,
   return grpc::Status::OK;
 }
 
-grpc::Status ObjectServiceImpl::CancelJob(grpc::ServerContext*, const v1::CancelJobRequest* request,
+grpc::Status ObjectServiceImpl::CancelJob(grpc::ServerContext* context,
+                                          const v1::CancelJobRequest* request,
                                           v1::CancelJobResponse* out) {
   if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
   if (request->job_id().empty()) return ToGrpc(InvalidArgument("job_id is empty"));
+  const Caller caller = CallerOf(context);
+  {
+    std::lock_guard<std::mutex> lock(requests_mutex_);
+    auto it = job_owners_.find(request->job_id());
+    if (it != job_owners_.end() && it->second != caller.token_name &&
+        !caller.at_least(Role::kAdmin))
+      return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
+                          request->job_id() + " belongs to token " + QuoteForMessage(it->second) +
+                              "; only its owner or an admin may cancel it");
+  }
   out->set_cancelled(ctx_.jobs->Cancel(request->job_id()));
   return grpc::Status::OK;
 }

@@ -3,10 +3,12 @@
 
 #include <atomic>
 #include <chrono>
+#include <map>
 #include <mutex>
 #include <set>
 #include <string>
 
+#include "daemon/api/auth.h"
 #include "daemon/api/lease.h"
 #include "daemon/api/object_builder.h"
 #include "daemon/api/scene.h"
@@ -15,6 +17,7 @@
 #include "daemon/loop/engine.h"
 #include "daemon/loop/frame_hub.h"
 #include "daemon/store/store.h"
+#include "rheo/v1/auth.grpc.pb.h"
 #include "rheo/v1/daemon.grpc.pb.h"
 #include "rheo/v1/device.grpc.pb.h"
 #include "rheo/v1/frames.grpc.pb.h"
@@ -45,6 +48,7 @@ struct DaemonContext {
   v1::DeviceKind device = v1::DEVICE_KIND_NONE;
   DeviceLink* device_link = nullptr;  // null with --device none
   LeaseManager* leases = nullptr;
+  TokenRegistry* tokens = nullptr;
   std::chrono::steady_clock::time_point started;
   std::atomic<bool>* shutting_down = nullptr;
   Store* store = nullptr;
@@ -72,6 +76,23 @@ grpc::Status SubmitAndWait(Engine& engine, const Command& c);
 /// and stored it (used as it is); null loads it from the store.
 grpc::Status AddObjectToScene(const DaemonContext& ctx, const v1::AddToSceneRequest& request,
                               const TetMesh* fresh, v1::SceneObject* out);
+
+class AuthServiceImpl final : public v1::AuthService::Service {
+ public:
+  explicit AuthServiceImpl(const DaemonContext& ctx) : ctx_(ctx) {}
+  grpc::Status WhoAmI(grpc::ServerContext*, const v1::WhoAmIRequest*, v1::Identity*) override;
+  grpc::Status CreateToken(grpc::ServerContext*, const v1::CreateTokenRequest*,
+                           v1::CreateTokenResponse*) override;
+  grpc::Status ListTokens(grpc::ServerContext*, const v1::ListTokensRequest*,
+                          v1::ListTokensResponse*) override;
+  grpc::Status RevokeToken(grpc::ServerContext*, const v1::RevokeTokenRequest*,
+                           v1::RevokeTokenResponse*) override;
+  grpc::Status ListAudit(grpc::ServerContext*, const v1::ListAuditRequest*,
+                         v1::ListAuditResponse*) override;
+
+ private:
+  const DaemonContext& ctx_;
+};
 
 class DaemonServiceImpl final : public v1::DaemonService::Service {
  public:
@@ -136,7 +157,8 @@ class ObjectServiceImpl final : public v1::ObjectService::Service {
 
   const DaemonContext& ctx_;
   std::mutex requests_mutex_;
-  std::set<std::string> requests_in_flight_;  // CreateObject request ids being built
+  std::set<std::string> requests_in_flight_;       // CreateObject request ids being built
+  std::map<std::string, std::string> job_owners_;  // job id -> token name, while it runs
 };
 
 class DeviceServiceImpl final : public v1::DeviceService::Service {
@@ -148,6 +170,8 @@ class DeviceServiceImpl final : public v1::DeviceService::Service {
                          v1::CalibrateResponse*) override;
   grpc::Status AcquireLease(grpc::ServerContext*, const v1::AcquireLeaseRequest*,
                             v1::Lease*) override;
+  grpc::Status RevokeLease(grpc::ServerContext*, const v1::RevokeLeaseRequest*,
+                           v1::RevokeLeaseResponse*) override;
   grpc::Status RenewLease(grpc::ServerContext*, const v1::RenewLeaseRequest*, v1::Lease*) override;
   grpc::Status ReleaseLease(grpc::ServerContext*, const v1::ReleaseLeaseRequest*,
                             v1::ReleaseLeaseResponse*) override;

@@ -90,6 +90,16 @@ Result<std::unique_ptr<Store>> Store::Open(const std::string& path, uint64_t quo
            " meta BLOB NOT NULL, sketch BLOB NOT NULL, sketch_kind TEXT NOT NULL,"
            " background BLOB, mesh BLOB NOT NULL, triangulation_svg TEXT, request_id TEXT)",
            "CREATE INDEX IF NOT EXISTS objects_created ON objects (created_ms DESC, id)",
+           // Access tokens (only their hashes) and the audit of state-changing calls.
+           "CREATE TABLE IF NOT EXISTS tokens ("
+           " name TEXT PRIMARY KEY, role INTEGER NOT NULL, hash TEXT NOT NULL UNIQUE,"
+           " created_ms INTEGER NOT NULL, expires_ms INTEGER NOT NULL DEFAULT 0,"
+           " revoked_ms INTEGER NOT NULL DEFAULT 0)",
+           "CREATE TABLE IF NOT EXISTS audit ("
+           " seq INTEGER PRIMARY KEY AUTOINCREMENT, at_ms INTEGER NOT NULL, token TEXT NOT NULL,"
+           " method TEXT NOT NULL, target TEXT NOT NULL, code INTEGER NOT NULL,"
+           " message TEXT NOT NULL)",
+           "CREATE INDEX IF NOT EXISTS audit_at ON audit (at_ms DESC)",
        }) {
     if (Status s = store->Exec(sql); !s.ok()) return s.error();
   }
@@ -298,6 +308,118 @@ Result<uint64_t> Store::Count() {
   if (!st.ok() || sqlite3_step(st.get()) != SQLITE_ROW)
     return Internal("object store: " + st.Error());
   return static_cast<uint64_t>(sqlite3_column_int64(st.get(), 0));
+}
+
+Status Store::PutToken(const StoredToken& t) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Stmt st(db_,
+          "INSERT INTO tokens (name, role, hash, created_ms, expires_ms, revoked_ms)"
+          " VALUES (?,?,?,?,?,?)");
+  if (!st.ok()) return Internal("token store: " + st.Error());
+  st.Text(1, t.name);
+  st.Int(2, t.role);
+  st.Text(3, t.hash);
+  st.Int(4, t.created_unix_ms);
+  st.Int(5, t.expires_unix_ms);
+  st.Int(6, t.revoked_unix_ms);
+  const int rc = sqlite3_step(st.get());
+  if (rc == SQLITE_CONSTRAINT)
+    return Error{ErrorCode::kAlreadyExists,
+                 "a token named '" + t.name +
+                     "' exists (or existed: names of revoked tokens are not reused); choose "
+                     "another name"};
+  if (rc != SQLITE_DONE) return Error{ErrorCode::kUnavailable, "token store: " + st.Error()};
+  return Status::Ok();
+}
+
+namespace {
+StoredToken ReadToken(Stmt& st) {
+  StoredToken t;
+  t.name = st.ColumnBytes(0);
+  t.role = static_cast<int>(sqlite3_column_int64(st.get(), 1));
+  t.hash = st.ColumnBytes(2);
+  t.created_unix_ms = sqlite3_column_int64(st.get(), 3);
+  t.expires_unix_ms = sqlite3_column_int64(st.get(), 4);
+  t.revoked_unix_ms = sqlite3_column_int64(st.get(), 5);
+  return t;
+}
+constexpr const char* kTokenColumns =
+    "SELECT name, role, hash, created_ms, expires_ms, revoked_ms FROM tokens";
+}  // namespace
+
+Result<std::vector<StoredToken>> Store::ListTokens() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Stmt st(db_, (std::string(kTokenColumns) + " ORDER BY created_ms, name").c_str());
+  if (!st.ok()) return Internal("token store: " + st.Error());
+  std::vector<StoredToken> out;
+  int rc;
+  while ((rc = sqlite3_step(st.get())) == SQLITE_ROW) out.push_back(ReadToken(st));
+  if (rc != SQLITE_DONE) return Internal("token store: " + st.Error());
+  return out;
+}
+
+Result<StoredToken> Store::RevokeToken(const std::string& name, int64_t at_unix_ms) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  StoredToken t;
+  {
+    Stmt q(db_, (std::string(kTokenColumns) + " WHERE name = ?").c_str());
+    if (!q.ok()) return Internal("token store: " + q.Error());
+    q.Text(1, name);
+    const int rc = sqlite3_step(q.get());
+    if (rc == SQLITE_DONE)
+      return NotFound("no token named '" + name + "' (rheoctl token list shows them)");
+    if (rc != SQLITE_ROW) return Internal("token store: " + q.Error());
+    t = ReadToken(q);
+  }
+  if (t.revoked_unix_ms != 0) return FailedPrecondition("token '" + name + "' is already revoked");
+  Stmt st(db_, "UPDATE tokens SET revoked_ms = ? WHERE name = ?");
+  if (!st.ok()) return Internal("token store: " + st.Error());
+  st.Int(1, at_unix_ms);
+  st.Text(2, name);
+  if (sqlite3_step(st.get()) != SQLITE_DONE)
+    return Error{ErrorCode::kUnavailable, "token store: " + st.Error()};
+  t.revoked_unix_ms = at_unix_ms;
+  return t;
+}
+
+Status Store::AppendAudit(const AuditRow& r) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Stmt st(db_,
+          "INSERT INTO audit (at_ms, token, method, target, code, message) VALUES (?,?,?,?,?,?)");
+  if (!st.ok()) return Internal("audit: " + st.Error());
+  st.Int(1, r.at_unix_ms);
+  st.Text(2, r.token_name);
+  st.Text(3, r.method);
+  st.Text(4, r.target);
+  st.Int(5, r.code);
+  st.Text(6, r.message);
+  if (sqlite3_step(st.get()) != SQLITE_DONE)
+    return Error{ErrorCode::kUnavailable, "audit: " + st.Error()};
+  return Status::Ok();
+}
+
+Result<std::vector<AuditRow>> Store::ListAudit(int64_t since_unix_ms, uint32_t limit) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Stmt st(db_,
+          "SELECT at_ms, token, method, target, code, message FROM audit WHERE at_ms >= ?"
+          " ORDER BY seq DESC LIMIT ?");
+  if (!st.ok()) return Internal("audit: " + st.Error());
+  st.Int(1, since_unix_ms);
+  st.Int(2, limit);
+  std::vector<AuditRow> out;
+  int rc;
+  while ((rc = sqlite3_step(st.get())) == SQLITE_ROW) {
+    AuditRow r;
+    r.at_unix_ms = sqlite3_column_int64(st.get(), 0);
+    r.token_name = st.ColumnBytes(1);
+    r.method = st.ColumnBytes(2);
+    r.target = st.ColumnBytes(3);
+    r.code = static_cast<int>(sqlite3_column_int64(st.get(), 4));
+    r.message = st.ColumnBytes(5);
+    out.push_back(std::move(r));
+  }
+  if (rc != SQLITE_DONE) return Internal("audit: " + st.Error());
+  return out;
 }
 
 std::string Store::NewId() {

@@ -29,6 +29,26 @@ struct StoredObject {
   std::string request_id;         // the client's CreateObject request id ("" when none)
 };
 
+/// An access token as stored: its SHA-256 (hex), never the token.
+struct StoredToken {
+  std::string name;
+  int role = 0;  // rheo.v1.Role
+  std::string hash;
+  int64_t created_unix_ms = 0;
+  int64_t expires_unix_ms = 0;  // 0: never
+  int64_t revoked_unix_ms = 0;  // 0: not revoked
+};
+
+/// One state-changing call, as the audit keeps it.
+struct AuditRow {
+  int64_t at_unix_ms = 0;
+  std::string token_name;
+  std::string method;
+  std::string target;
+  int code = 0;
+  std::string message;
+};
+
 /// Thread-safe (one connection behind a mutex; never used from the real-time loop). Every write
 /// is one transaction, so a crash leaves either the old or the new object, never half of one.
 class Store {
@@ -55,6 +75,18 @@ class Store {
                                          std::string* next_token);
   Status Delete(const std::string& id);
   Result<uint64_t> Count();
+
+  /// ALREADY_EXISTS when a token has this name (revoked ones included: names are not reused,
+  /// so the audit stays unambiguous).
+  Status PutToken(const StoredToken& token);
+  Result<std::vector<StoredToken>> ListTokens();
+  /// Marks the token revoked at `at_unix_ms`; NOT_FOUND names it; FAILED_PRECONDITION when it
+  /// already was.
+  Result<StoredToken> RevokeToken(const std::string& name, int64_t at_unix_ms);
+
+  Status AppendAudit(const AuditRow& row);
+  /// Newest first, at or after `since_unix_ms`.
+  Result<std::vector<AuditRow>> ListAudit(int64_t since_unix_ms, uint32_t limit);
 
   /// A fresh random id, e.g. "obj-3f9a0c2e71b4d855".
   static std::string NewId();

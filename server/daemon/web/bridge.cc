@@ -13,9 +13,9 @@ namespace {
 namespace pb = google::protobuf;
 
 // The services the bridge reaches: the whole public API.
-constexpr const char* kServices[] = {"rheo.v1.DaemonService", "rheo.v1.DeviceService",
-                                     "rheo.v1.FrameService", "rheo.v1.ObjectService",
-                                     "rheo.v1.SceneService"};
+constexpr const char* kServices[] = {"rheo.v1.AuthService",   "rheo.v1.DaemonService",
+                                     "rheo.v1.DeviceService", "rheo.v1.FrameService",
+                                     "rheo.v1.ObjectService", "rheo.v1.SceneService"};
 
 std::string Flatten(const grpc::ByteBuffer& buffer) {
   std::vector<grpc::Slice> slices;
@@ -109,8 +109,10 @@ grpc::Status Bridge::BinaryToJson(const pb::Descriptor* type, const std::string&
 }
 
 Call::Call(Bridge& bridge, const MethodInfo& method, uint32_t id, bool binary,
-           std::weak_ptr<CallSink> sink)
-    : bridge_(bridge), method_(method), id_(id), binary_(binary), sink_(std::move(sink)) {}
+           const std::string& authorization, std::weak_ptr<CallSink> sink)
+    : bridge_(bridge), method_(method), id_(id), binary_(binary), sink_(std::move(sink)) {
+  if (!authorization.empty()) context_.AddMetadata("authorization", authorization);
+}
 
 Call::~Call() = default;
 

@@ -1,7 +1,8 @@
-// The generic bridge: any rheo.v1 method called through the daemon's own in-process gRPC
-// channel, so the WebSocket carries exactly the gRPC API (its validation, limits and status codes)
-// and nothing is implemented twice. Requests and responses are converted between protobuf and the
-// standard JSON mapping with the descriptors compiled into the daemon.
+// The generic bridge: any rheo.v1 method called through a gRPC channel to the daemon's own
+// server (its gateway socket, where tokens are checked as on every port), so the WebSocket carries
+// exactly the gRPC API (its validation, limits and status codes) and nothing is implemented twice.
+// Requests and responses are converted between protobuf and the standard JSON mapping with the
+// descriptors compiled into the daemon.
 #pragma once
 
 #include <grpcpp/generic/generic_stub.h>
@@ -50,8 +51,9 @@ class Bridge;
 class Call : public grpc::ClientBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>,
              public std::enable_shared_from_this<Call> {
  public:
+  /// `authorization`: "Bearer TOKEN" from the connection's auth message ("" sends none).
   Call(Bridge& bridge, const MethodInfo& method, uint32_t id, bool binary,
-       std::weak_ptr<CallSink> sink);
+       const std::string& authorization, std::weak_ptr<CallSink> sink);
   ~Call() override;
 
   /// Starts the call; `first` is the request (unary and server-streaming calls, which are then

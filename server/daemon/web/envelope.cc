@@ -20,6 +20,20 @@ grpc::Status ParseTextMessage(std::string_view text, ClientMessage* out) {
         "{\"id\":1,\"method\":\"rheo.v1.DaemonService/GetStatus\",\"request\":{}}");
   if (!j.is_object())
     return Bad("the message must be a JSON object, not " + std::string(j.type_name()));
+  // {"auth": "TOKEN"}: the token for every call opened from here on (the first message).
+  if (auto a = j.find("auth"); a != j.end()) {
+    if (j.size() != 1) return Bad("an \"auth\" message has only \"auth\": the access token");
+    if (!a->is_string() || a->get_ref<const std::string&>().empty() ||
+        a->get_ref<const std::string&>().size() > 512)
+      return Bad("\"auth\" must be the access token, a string of 1 to 512 characters");
+    const std::string& t = a->get_ref<const std::string&>();
+    for (char c : t)
+      if (c < 0x21 || c > 0x7e)
+        return Bad("\"auth\" must be the access token: printable ASCII, no spaces");
+    out->kind = ClientMessage::Kind::kAuth;
+    out->payload = t;
+    return grpc::Status::OK;
+  }
   auto id = j.find("id");
   if (id == j.end()) return Bad("the message has no \"id\" (a positive integer naming the call)");
   if (!id->is_number_unsigned() || id->get<uint64_t>() == 0 || id->get<uint64_t>() > kMaxCallId)

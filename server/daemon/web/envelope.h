@@ -21,7 +21,7 @@
 namespace rheo::daemon::web {
 
 struct ClientMessage {
-  enum class Kind { kOpen, kWrite, kEnd, kCancel };
+  enum class Kind { kOpen, kWrite, kEnd, kCancel, kAuth };
   Kind kind = Kind::kOpen;
   uint32_t id = 0;
   std::string method;        // kOpen: "package.Service/Method"
@@ -29,7 +29,8 @@ struct ClientMessage {
   bool binary = false;       // kOpen: responses as binary messages
   bool has_payload = false;  // kOpen with "request", or kWrite
   bool payload_is_binary = false;
-  std::string payload;  // JSON text of the message, or its protobuf bytes (binary write)
+  std::string payload;  // JSON text of the message, or its protobuf bytes (binary write);
+                        // kAuth: the access token
 };
 
 /// Largest call id (ids are positive and fit a JavaScript number exactly).

@@ -138,6 +138,10 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
   }
 
   void Handle(ClientMessage m) {
+    if (m.kind == ClientMessage::Kind::kAuth) {
+      authorization_ = "Bearer " + m.payload;  // checked by the daemon on every call
+      return;
+    }
     auto it = calls_.find(m.id);
     if (m.kind == ClientMessage::Kind::kOpen) {
       if (it != calls_.end())
@@ -162,7 +166,7 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
         if (grpc::Status s = gw_.bridge.JsonToBinary(method->input, m.payload, &first); !s.ok())
           return Reply(m.id, s.error_code(), s.error_message());
       }
-      auto call = std::make_shared<Call>(gw_.bridge, *method, m.id, m.binary,
+      auto call = std::make_shared<Call>(gw_.bridge, *method, m.id, m.binary, authorization_,
                                          std::weak_ptr<CallSink>(shared_from_this()));
       calls_.emplace(m.id, call);
       call->Start(m.stream ? nullptr : &first, !m.stream);
@@ -183,7 +187,8 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
       }
       case ClientMessage::Kind::kEnd: return call.WritesDone();
       case ClientMessage::Kind::kCancel: return call.Cancel();
-      case ClientMessage::Kind::kOpen: return;
+      case ClientMessage::Kind::kOpen:
+      case ClientMessage::Kind::kAuth: return;
     }
   }
 
@@ -233,6 +238,7 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
   std::deque<Outgoing> out_;
   std::map<uint32_t, std::shared_ptr<Call>> calls_;
   bool closed_ = false;
+  std::string authorization_;  // "Bearer TOKEN" once the page sent {"auth": TOKEN}
 };
 
 // One HTTP connection: static files, or the upgrade to the WebSocket at /rpc.

@@ -29,7 +29,7 @@ struct GatewayStats {
 
 class Gateway {
  public:
-  /// `channel`: the gRPC server's in-process channel.
+  /// `channel`: a channel to the gRPC server (its gateway socket).
   Gateway(GatewayOptions options, std::shared_ptr<grpc::Channel> channel);
   ~Gateway();
   Gateway(const Gateway&) = delete;
