@@ -1,9 +1,11 @@
 #include "daemon/net/tcp_relay.h"
 
 #include <array>
-#include <boost/asio.hpp>
 #include <thread>
 #include <utility>
+
+// After the standard headers: Debian's Boost 1.74 asio uses std::exchange without <utility>.
+#include <boost/asio.hpp>
 
 namespace rheo::daemon::net {
 namespace asio = boost::asio;
