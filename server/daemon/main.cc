@@ -88,6 +88,11 @@ struct Flags {
   // TLS for gRPC and the studio (wss/https); with a client CA, client certificates are required.
   std::string tls_cert, tls_key, tls_client_ca;
   bool insecure = false;  // allow plaintext on a non-loopback address
+  // Per-token limits (0: none).
+  double limit_calls = 10.0;  // expensive calls per second (burst: twice as many)
+  int limit_streams = 64;
+  int limit_jobs = 2;
+  double stream_idle_s = 60.0;
 };
 
 // Holds an exclusive lock on the data directory so two daemons never share one store.
@@ -275,6 +280,24 @@ int main(int argc, char** argv) {
   app.add_option("--tls-key", flags.tls_key, "PEM private key of --tls-cert");
   app.add_option("--tls-client-ca", flags.tls_client_ca,
                  "PEM CA: clients must present a certificate it signed (mutual TLS)");
+  app.add_option("--limit-calls", flags.limit_calls,
+                 "calls per second per token to each expensive method (CreateObject, "
+                 "ExtractContour, AddToScene, ExportObject), twice as many in a burst; 0: no "
+                 "limit")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
+  app.add_option("--limit-streams", flags.limit_streams,
+                 "open streams (frame watchers, tool streams, builds, exports) per token; 0: no "
+                 "limit")
+      ->check(CLI::Range(0, 1000000))
+      ->capture_default_str();
+  app.add_option("--limit-jobs", flags.limit_jobs, "mesh jobs per token at once; 0: no limit")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
+  app.add_option("--stream-idle", flags.stream_idle_s,
+                 "a stream whose client neither reads nor writes this long is ended [s]; 0: never")
+      ->check(CLI::Range(0.0, 86400.0))
+      ->capture_default_str();
   app.add_flag("--insecure", flags.insecure,
                "allow plaintext on a non-loopback --listen or --http (tokens then cross the "
                "network readable; warned every minute)");
@@ -459,6 +482,14 @@ int main(int argc, char** argv) {
   ctx.device_link = device.get();
   ctx.leases = &leases;
   ctx.tokens = &tokens;
+  QuotaLimits quota_limits;
+  quota_limits.calls_per_s = flags.limit_calls;
+  quota_limits.burst = 2.0 * flags.limit_calls;
+  quota_limits.streams = flags.limit_streams;
+  quota_limits.jobs = flags.limit_jobs;
+  quota_limits.stream_idle = std::chrono::milliseconds(std::llround(flags.stream_idle_s * 1e3));
+  Quotas quotas(quota_limits);
+  ctx.quotas = &quotas;
   ctx.started = std::chrono::steady_clock::now();
   ctx.shutting_down = &shutting_down;
   ctx.store = store->get();
@@ -493,7 +524,7 @@ int main(int argc, char** argv) {
   // TLS when given, else local credentials (loopback only: gRPC refuses other peers). gRPC
   // cannot check tokens on plaintext credentials, so --insecure on a non-loopback address is a
   // relay onto a local port (below), never an unchecked one.
-  auto processor = std::make_shared<AuthProcessor>(tokens, store->get());
+  auto processor = std::make_shared<AuthProcessor>(tokens, store->get(), &quotas);
   SetCallerTokens(&tokens);
   auto port_credentials = [&](bool local_tcp) {
     std::shared_ptr<grpc::ServerCredentials> creds;
@@ -526,7 +557,14 @@ int main(int argc, char** argv) {
   }
   if (flags.http != "off") builder.AddListeningPort(gateway_socket, port_credentials(false));
   builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
-  builder.SetMaxReceiveMessageSize(64 << 20);
+  builder.SetMaxReceiveMessageSize(static_cast<int>(rheo::daemon::kMaxSketchRequestBytes));
+  // Keepalive: rheod pings a connection idle for 30 s and drops it when no answer comes in 10 s
+  // (a vanished client's streams end); clients may ping every 10 s, with or without calls.
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 30'000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10'000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 10'000);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);
   builder.RegisterService(&auth_service);
   builder.RegisterService(&daemon_service);
   builder.RegisterService(&frame_service);
@@ -627,6 +665,19 @@ int main(int argc, char** argv) {
     });
   };
   warn_insecure();
+  // Streams whose clients stalled (a write that cannot complete, a tool stream gone quiet) are
+  // ended, checked once a second; each such end is logged and counted in GetStatus.
+  boost::asio::steady_timer idle_reaper(io);
+  std::function<void()> reap_idle = [&] {
+    if (int n = quotas.CancelIdle(); n > 0)
+      spdlog::warn("ended {} stream(s) idle for more than {:.0f} s (--stream-idle)", n,
+                   flags.stream_idle_s);
+    idle_reaper.expires_after(std::chrono::seconds(1));
+    idle_reaper.async_wait([&](const boost::system::error_code& ec) {
+      if (!ec) reap_idle();
+    });
+  };
+  if (flags.stream_idle_s > 0) reap_idle();
 
   // Shutdown, in the safe order and bounded: the device to minimum tension first, then the mesh
   // jobs are cancelled, the server and the loop stop. A job or a handler that does not stop in
@@ -659,6 +710,7 @@ int main(int argc, char** argv) {
       std::_Exit(0);
     });
     insecure_warning.cancel();
+    idle_reaper.cancel();
     if (relay) relay->Stop();
     jobs.CancelAll();              // running mesh jobs are asked to stop
     if (gateway) gateway->Stop();  // studio pages: their calls cancelled, connections closed

@@ -90,41 +90,6 @@ std::vector<std::string> ServedServices(const std::shared_ptr<grpc::Channel>& ch
   return out;
 }
 
-// One call of any method with its default (empty) request; a stream is cancelled after its
-// first response. The status it ended with.
-grpc::Status CallEmpty(const std::shared_ptr<grpc::Channel>& channel, const std::string& path) {
-  grpc::GenericStub stub(channel);
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, 5s);
-  grpc::CompletionQueue cq;
-  auto call = stub.PrepareCall(&ctx, path, &cq);
-  void* tag;
-  bool ok;
-  auto step = [&](int want) {
-    EXPECT_TRUE(cq.Next(&tag, &ok));
-    EXPECT_EQ(tag, reinterpret_cast<void*>(want));
-    return ok;
-  };
-  call->StartCall(reinterpret_cast<void*>(1));
-  step(1);
-  grpc::ByteBuffer empty;
-  {
-    grpc::Slice nothing("", 0);
-    empty = grpc::ByteBuffer(&nothing, 1);
-  }
-  call->Write(empty, reinterpret_cast<void*>(2));
-  step(2);
-  call->WritesDone(reinterpret_cast<void*>(3));
-  step(3);
-  grpc::ByteBuffer reply;
-  call->Read(&reply, reinterpret_cast<void*>(4));
-  if (step(4)) ctx.TryCancel();  // a stream: its first response is enough
-  grpc::Status status;
-  call->Finish(&status, reinterpret_cast<void*>(5));
-  step(5);
-  return status;
-}
-
 std::string MakeToken(const RheodProcess& d, const std::string& name, v1::Role role,
                       double expires_s = 0) {
   v1::CreateTokenRequest req;

@@ -24,29 +24,6 @@ using namespace std::chrono_literals;
 constexpr double kCancelLatencyMs = kSanitizerBuild ? 500.0 : 100.0;
 using Clock = std::chrono::steady_clock;
 
-// 19,000 five-point strokes packed within 5 px: every stroke overlaps every other, the densest
-// stroke merge the limits allow (about 2 s in the sketch stage; minutes before the merge was
-// rewritten).
-std::string DenseStrokeBomb() {
-  std::mt19937 rng(11);
-  auto u = [&] { return rng() / 4294967296.0; };
-  std::string j = "{\"width\":512,\"height\":512,\"strokes\":[";
-  char b[64];
-  for (int k = 0; k < 19000; ++k) {
-    const double r = 5.0 * std::sqrt(u()), phi = 2 * M_PI * u();
-    double x = 256 + r * std::cos(phi), y = 256 + r * std::sin(phi), dir = 2 * M_PI * u();
-    j += k ? ",[" : "[";
-    for (int i = 0; i < 5; ++i) {
-      std::snprintf(b, sizeof b, "%s[%.2f,%.2f]", i ? "," : "", x, y);
-      j += b;
-      dir += u() - 0.5;
-      x += 2 * std::cos(dir), y += 2 * std::sin(dir);
-    }
-    j += "]";
-  }
-  return j + "]}";
-}
-
 // CPU time the process has used [s] (user + system, from /proc/PID/stat).
 double ProcessCpu(int pid) {
   std::ifstream in("/proc/" + std::to_string(pid) + "/stat");

@@ -1,6 +1,7 @@
 #include "rheod_fixture.h"
 
 #include <fcntl.h>
+#include <grpcpp/generic/generic_stub.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
@@ -8,9 +9,11 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <random>
 
 #include "rheo/client/channel.h"
 #include "rheo/v1/daemon.grpc.pb.h"
@@ -182,6 +185,57 @@ int RheodProcess::Terminate(std::chrono::milliseconds timeout, std::chrono::mill
                                                                   t0);
   if (code != -1) pid_ = -1;
   return code;
+}
+
+grpc::Status CallRaw(const std::shared_ptr<grpc::Channel>& channel, const std::string& path,
+                     const std::string& request, std::chrono::milliseconds deadline) {
+  grpc::GenericStub stub(channel);
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, deadline);
+  grpc::CompletionQueue cq;
+  auto call = stub.PrepareCall(&ctx, path, &cq);
+  void* tag;
+  bool ok;
+  auto step = [&](int want) {
+    EXPECT_TRUE(cq.Next(&tag, &ok));
+    EXPECT_EQ(tag, reinterpret_cast<void*>(want));
+    return ok;
+  };
+  call->StartCall(reinterpret_cast<void*>(1));
+  step(1);
+  grpc::Slice bytes(request);
+  grpc::ByteBuffer buffer(&bytes, 1);
+  call->Write(buffer, reinterpret_cast<void*>(2));
+  step(2);
+  call->WritesDone(reinterpret_cast<void*>(3));
+  step(3);
+  grpc::ByteBuffer reply;
+  call->Read(&reply, reinterpret_cast<void*>(4));
+  if (step(4)) ctx.TryCancel();  // a stream: its first response is enough
+  grpc::Status status;
+  call->Finish(&status, reinterpret_cast<void*>(5));
+  step(5);
+  return status;
+}
+
+std::string DenseStrokeBomb() {
+  std::mt19937 rng(11);
+  auto u = [&] { return rng() / 4294967296.0; };
+  std::string j = "{\"width\":512,\"height\":512,\"strokes\":[";
+  char b[64];
+  for (int k = 0; k < 19000; ++k) {
+    const double r = 5.0 * std::sqrt(u()), phi = 2 * M_PI * u();
+    double x = 256 + r * std::cos(phi), y = 256 + r * std::sin(phi), dir = 2 * M_PI * u();
+    j += k ? ",[" : "[";
+    for (int i = 0; i < 5; ++i) {
+      std::snprintf(b, sizeof b, "%s[%.2f,%.2f]", i ? "," : "", x, y);
+      j += b;
+      dir += u() - 0.5;
+      x += 2 * std::cos(dir), y += 2 * std::sin(dir);
+    }
+    j += "]";
+  }
+  return j + "]}";
 }
 
 RunResult RunProgram(const std::vector<std::string>& args) {

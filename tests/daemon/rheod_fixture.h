@@ -79,6 +79,21 @@ inline void SetDeadline(grpc::ClientContext& ctx,
 double LoopTickRate(RheodProcess& d, std::chrono::milliseconds window,
                     std::string* detail = nullptr);
 
+/// One call of any method with `request` (serialized) as its only request; a stream is cancelled
+/// after its first response. The status it ended with.
+grpc::Status CallRaw(const std::shared_ptr<grpc::Channel>& channel, const std::string& path,
+                     const std::string& request,
+                     std::chrono::milliseconds deadline = std::chrono::seconds(5));
+/// CallRaw with the default (empty) request.
+inline grpc::Status CallEmpty(const std::shared_ptr<grpc::Channel>& channel,
+                              const std::string& path) {
+  return CallRaw(channel, path, std::string());
+}
+
+/// A sketch of 19,000 short random strokes in a 10-pixel disc: the densest stroke merge the
+/// limits allow (about 2 s in the sketch stage), for tests that need a job that runs a while.
+std::string DenseStrokeBomb();
+
 /// Runs a program and captures stdout, stderr and the exit code.
 struct RunResult {
   int exit_code = -1;

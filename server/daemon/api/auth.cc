@@ -64,6 +64,8 @@ int64_t UnixMillis(std::chrono::system_clock::time_point t) {
 
 const std::vector<MethodRule>& MethodTable() {
   constexpr Role V = Role::kViewer, O = Role::kOperator, A = Role::kAdmin, open = Role::kNone;
+  constexpr bool metered = true;
+  constexpr size_t sketch = kMaxSketchRequestBytes, small = 64 * 1024, pose = 4 * 1024;
   static const std::vector<MethodRule> table = {
       // Open: load balancers and tools must reach them without a token.
       {"/grpc.health.v1.Health/Check", open, false},
@@ -75,7 +77,7 @@ const std::vector<MethodRule>& MethodTable() {
       {"/rheo.v1.FrameService/WatchFrames", V, false},
       {"/rheo.v1.ObjectService/ListObjects", V, false},
       {"/rheo.v1.ObjectService/GetObject", V, false},
-      {"/rheo.v1.ObjectService/ExportObject", V, false},
+      {"/rheo.v1.ObjectService/ExportObject", V, false, metered},
       {"/rheo.v1.SceneService/GetScene", V, false},
       {"/rheo.v1.SceneService/ListParameters", V, false},
       {"/rheo.v1.DeviceService/GetDeviceStatus", V, false},
@@ -83,18 +85,18 @@ const std::vector<MethodRule>& MethodTable() {
       // Anyone who can see the device may stop it (clearing it needs the lease: the handler).
       {"/rheo.v1.DeviceService/EmergencyStop", V, true},
       // Operating.
-      {"/rheo.v1.ObjectService/CreateObject", O, true},
+      {"/rheo.v1.ObjectService/CreateObject", O, true, metered, sketch},
       {"/rheo.v1.ObjectService/CancelJob", O, true},  // one's own jobs; an admin's any
-      {"/rheo.v1.ObjectService/ExtractContour", O, false},
-      {"/rheo.v1.SceneService/AddToScene", O, true},
+      {"/rheo.v1.ObjectService/ExtractContour", O, false, metered, sketch},
+      {"/rheo.v1.SceneService/AddToScene", O, true, metered},
       {"/rheo.v1.SceneService/RemoveFromScene", O, true},
-      {"/rheo.v1.SceneService/SetParameters", O, true},
+      {"/rheo.v1.SceneService/SetParameters", O, true, false, small},
       {"/rheo.v1.SceneService/Control", O, true},
       {"/rheo.v1.DeviceService/Calibrate", O, true},
       {"/rheo.v1.DeviceService/AcquireLease", O, true},
       {"/rheo.v1.DeviceService/RenewLease", O, true},
       {"/rheo.v1.DeviceService/ReleaseLease", O, true},
-      {"/rheo.v1.DeviceService/ToolStream", O, true},
+      {"/rheo.v1.DeviceService/ToolStream", O, true, false, pose},
       {"/rheo.v1.DeviceService/SimulatedHand", O, true},
       // Administering.
       {"/rheo.v1.ObjectService/DeleteObject", A, true},
@@ -270,6 +272,10 @@ grpc::Status AuthProcessor::Process(const InputMetadata& md, grpc::AuthContext*,
                   std::string(path.substr(path.rfind('/') + 1)) + " needs the " +
                       RoleName(rule->least) + " role; token '" + token->name + "' is a " +
                       RoleName(role) + " (ask an admin for a token with that role)");
+  if (rule->metered && quotas_) {
+    grpc::Status s = quotas_->Charge(token->name, path.substr(path.rfind('/') + 1));
+    if (!s.ok()) return refuse(s.error_code(), token->name, s.error_message());
+  }
   // The header stays on the call (not consumed): CallerOf reads who made it from there.
   return grpc::Status::OK;
 }

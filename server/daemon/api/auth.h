@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "common/status.h"
+#include "daemon/api/quota.h"
 #include "daemon/store/store.h"
 
 namespace grpc {
@@ -41,7 +42,11 @@ struct MethodRule {
   std::string_view path;  // "/rheo.v1.ObjectService/DeleteObject"
   Role least;             // kNone: open to anyone (health, reflection)
   bool audited;           // it changes state: every call is recorded in the audit
+  bool metered = false;   // expensive: counts against the token's calls per second (quota.h)
+  size_t max_request_bytes = 64 * 1024;  // each request message, serialized (CheckRequest)
 };
+/// The largest request any method takes: a sketch and its photo (32 MB each).
+inline constexpr size_t kMaxSketchRequestBytes = 64u << 20;
 /// Every method of every service rheod serves, with its least role. A method missing from it
 /// is refused to everyone (PERMISSION_DENIED), and a test walks the service descriptors so a new
 /// method without an entry fails.
@@ -97,7 +102,9 @@ class TokenRegistry {
 /// call before any handler runs; a refused state-changing call is recorded in the audit.
 class AuthProcessor final : public grpc::AuthMetadataProcessor {
  public:
-  AuthProcessor(const TokenRegistry& tokens, Store* audit) : tokens_(tokens), audit_(audit) {}
+  /// `quotas` (may be null): metered methods are charged to the caller's token here.
+  AuthProcessor(const TokenRegistry& tokens, Store* audit, Quotas* quotas = nullptr)
+      : tokens_(tokens), audit_(audit), quotas_(quotas) {}
   bool IsBlocking() const override { return true; }  // it may write an audit row
   grpc::Status Process(const InputMetadata& auth_metadata, grpc::AuthContext* context,
                        OutputMetadata* consumed_auth_metadata,
@@ -106,6 +113,7 @@ class AuthProcessor final : public grpc::AuthMetadataProcessor {
  private:
   const TokenRegistry& tokens_;
   Store* audit_;
+  Quotas* quotas_;
 };
 
 /// Records every state-changing call that reached a handler: when, which token, the method, the

@@ -17,8 +17,9 @@ void FillToken(const StoredToken& t, v1::TokenInfo* out) {
 
 }  // namespace
 
-grpc::Status AuthServiceImpl::WhoAmI(grpc::ServerContext* context, const v1::WhoAmIRequest*,
+grpc::Status AuthServiceImpl::WhoAmI(grpc::ServerContext* context, const v1::WhoAmIRequest* req,
                                      v1::Identity* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   const Caller caller = CallerOf(context);
   out->set_token_name(caller.token_name);
   out->set_role(static_cast<v1::Role>(caller.role));
@@ -29,7 +30,7 @@ grpc::Status AuthServiceImpl::WhoAmI(grpc::ServerContext* context, const v1::Who
 
 grpc::Status AuthServiceImpl::CreateToken(grpc::ServerContext*, const v1::CreateTokenRequest* req,
                                           v1::CreateTokenResponse* out) {
-  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (req->role() < v1::ROLE_VIEWER || req->role() > v1::ROLE_ADMIN)
     return ToGrpc(InvalidArgument("role must be ROLE_VIEWER, ROLE_OPERATOR or ROLE_ADMIN"));
   auto made = ctx_.tokens->Create(req->name(), static_cast<Role>(req->role()), req->expires_in_s());
@@ -39,15 +40,16 @@ grpc::Status AuthServiceImpl::CreateToken(grpc::ServerContext*, const v1::Create
   return grpc::Status::OK;
 }
 
-grpc::Status AuthServiceImpl::ListTokens(grpc::ServerContext*, const v1::ListTokensRequest*,
+grpc::Status AuthServiceImpl::ListTokens(grpc::ServerContext*, const v1::ListTokensRequest* req,
                                          v1::ListTokensResponse* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   for (const StoredToken& t : ctx_.tokens->List()) FillToken(t, out->add_tokens());
   return grpc::Status::OK;
 }
 
 grpc::Status AuthServiceImpl::RevokeToken(grpc::ServerContext*, const v1::RevokeTokenRequest* req,
                                           v1::RevokeTokenResponse* out) {
-  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (req->name().empty()) return ToGrpc(InvalidArgument("name is empty: which token to revoke"));
   auto t = ctx_.tokens->Revoke(req->name());
   if (!t.ok()) return ToGrpc(t.error());
@@ -57,6 +59,7 @@ grpc::Status AuthServiceImpl::RevokeToken(grpc::ServerContext*, const v1::Revoke
 
 grpc::Status AuthServiceImpl::ListAudit(grpc::ServerContext*, const v1::ListAuditRequest* req,
                                         v1::ListAuditResponse* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (req->limit() > 10000)
     return ToGrpc(InvalidArgument("limit is at most 10000, got " + std::to_string(req->limit())));
   auto rows = ctx_.store->ListAudit(req->since_unix_ms(), req->limit() == 0 ? 100 : req->limit());

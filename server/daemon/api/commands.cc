@@ -1,7 +1,14 @@
-// Commands into the loop from the services: submit, wait for the tick that applied them.
+// Commands into the loop from the services: submit, wait for the tick that applied them; the
+// streams' hold on their token's quota.
 #include "daemon/api/services.h"
 
 namespace rheo::daemon {
+
+grpc::Status HoldStream(const DaemonContext& ctx, grpc::ServerContext* context,
+                        std::string_view method, Quotas::Stream* slot) {
+  if (!ctx.quotas) return grpc::Status::OK;
+  return ctx.quotas->OpenStream(context, CallerOf(context).token_name, method, slot);
+}
 
 grpc::Status QueueFull() {
   return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,

@@ -1,4 +1,5 @@
 // DaemonService: the daemon's status (loop timing, counts, capabilities).
+#include <algorithm>
 #include <cmath>
 
 #include "daemon/api/convert.h"
@@ -6,8 +7,9 @@
 
 namespace rheo::daemon {
 
-grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetStatusRequest*,
+grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetStatusRequest* req,
                                           v1::DaemonStatus* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   const rt::Loop& loop = ctx_.engine->loop();
   const rt::LoopStats& s = loop.stats();
   out->set_version(ctx_.version);
@@ -40,6 +42,21 @@ grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetSta
   out->set_scene_objects(static_cast<uint32_t>(ctx_.scene->size()));
   if (auto n = ctx_.store->Count(); n.ok()) out->set_stored_objects(static_cast<uint32_t>(*n));
   out->set_running_jobs(static_cast<uint32_t>(ctx_.jobs->in_flight()));
+  if (ctx_.quotas) {
+    const QuotaLimits& q = ctx_.quotas->limits();
+    const QuotaStats st = ctx_.quotas->stats();
+    v1::Limits* lim = out->mutable_limits();
+    lim->set_calls_per_s(q.calls_per_s);
+    lim->set_burst(q.burst);
+    lim->set_streams(static_cast<uint32_t>(q.streams));
+    lim->set_jobs(static_cast<uint32_t>(q.jobs));
+    lim->set_stream_idle_s(q.stream_idle.count() * 1e-3);
+    lim->set_refused_calls(st.refused_rate);
+    lim->set_refused_streams(st.refused_streams);
+    lim->set_refused_jobs(st.refused_jobs);
+    lim->set_idle_streams_ended(st.idle_cancelled);
+    lim->set_open_streams(static_cast<uint32_t>(std::max(0, st.open_streams)));
+  }
   for (const char* c : {"loop", "frames", "sketch", "mesh", "store", "sim"})
     out->add_capabilities(c);
   return grpc::Status::OK;

@@ -58,8 +58,9 @@ grpc::Status NeedLease(const DaemonContext& ctx, const grpc::ServerContext* cont
 }  // namespace
 
 grpc::Status DeviceServiceImpl::GetDeviceStatus(grpc::ServerContext*,
-                                                const v1::GetDeviceStatusRequest*,
+                                                const v1::GetDeviceStatusRequest* req,
                                                 v1::DeviceStatus* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (!ctx_.device_link) {
     out->set_kind(ctx_.device);
     out->set_model("none");
@@ -73,7 +74,7 @@ grpc::Status DeviceServiceImpl::GetDeviceStatus(grpc::ServerContext*,
 grpc::Status DeviceServiceImpl::Calibrate(grpc::ServerContext* context,
                                           const v1::CalibrateRequest* req,
                                           v1::CalibrateResponse* out) {
-  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (grpc::Status s =
           NeedLease(ctx_, context, req->lease_id(), ctx_.device_link->emergency_stopped());
@@ -94,7 +95,7 @@ grpc::Status DeviceServiceImpl::Calibrate(grpc::ServerContext* context,
 
 grpc::Status DeviceServiceImpl::AcquireLease(grpc::ServerContext* context,
                                              const v1::AcquireLeaseRequest* req, v1::Lease* out) {
-  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (grpc::Status s = CheckLeaseDuration(req->duration_s()); !s.ok()) return s;
   auto l =
@@ -106,7 +107,7 @@ grpc::Status DeviceServiceImpl::AcquireLease(grpc::ServerContext* context,
 
 grpc::Status DeviceServiceImpl::RenewLease(grpc::ServerContext* context,
                                            const v1::RenewLeaseRequest* req, v1::Lease* out) {
-  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (grpc::Status s = CheckLeaseDuration(req->duration_s()); !s.ok()) return s;
   auto l = ctx_.leases->Renew(req->lease_id(), CallerOf(context).token_name, req->duration_s());
@@ -118,15 +119,16 @@ grpc::Status DeviceServiceImpl::RenewLease(grpc::ServerContext* context,
 grpc::Status DeviceServiceImpl::ReleaseLease(grpc::ServerContext* context,
                                              const v1::ReleaseLeaseRequest* req,
                                              v1::ReleaseLeaseResponse*) {
-  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (Status s = ctx_.leases->Release(req->lease_id(), CallerOf(context).token_name); !s.ok())
     return ToGrpc(s.error());
   return grpc::Status::OK;
 }
 
-grpc::Status DeviceServiceImpl::RevokeLease(grpc::ServerContext*, const v1::RevokeLeaseRequest*,
+grpc::Status DeviceServiceImpl::RevokeLease(grpc::ServerContext*, const v1::RevokeLeaseRequest* req,
                                             v1::RevokeLeaseResponse* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   out->set_holder(ctx_.leases->Revoke());
   return grpc::Status::OK;
@@ -135,7 +137,7 @@ grpc::Status DeviceServiceImpl::RevokeLease(grpc::ServerContext*, const v1::Revo
 grpc::Status DeviceServiceImpl::EmergencyStop(grpc::ServerContext* context,
                                               const v1::EmergencyStopRequest* req,
                                               v1::EmergencyStopResponse* out) {
-  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   if (req->engage()) {
     ctx_.device_link->EmergencyStop();
@@ -162,12 +164,15 @@ grpc::Status DeviceServiceImpl::ToolStream(
         grpc::StatusCode::FAILED_PRECONDITION,
         std::string("ToolStream moves the network tool; this rheod runs --device ") +
             DeviceKindName(ctx_.device_link->kind()) + " (start it with --device network)");
+  Quotas::Stream slot;
+  if (grpc::Status s = HoldStream(ctx_, context, "ToolStream", &slot); !s.ok()) return s;
   v1::ToolInput in;
   v1::ToolFeedback fb;
   std::string lease_id;
   uint64_t used = 0;
   while (stream->Read(&in)) {
-    if (grpc::Status s = CheckStringLimits(in); !s.ok()) return s;
+    slot.Touch();
+    if (grpc::Status s = CheckRequest(in); !s.ok()) return s;
     if (lease_id.empty()) lease_id = in.lease_id();
     if (!in.lease_id().empty() && in.lease_id() != lease_id)
       return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
@@ -207,6 +212,7 @@ grpc::Status DeviceServiceImpl::ToolStream(
     fb.set_input_seq(used);
     for (const std::string& f : DeviceFaultList(t)) fb.add_faults(f);
     if (!stream->Write(fb)) return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
+    slot.Touch();
   }
   return grpc::Status::OK;
 }
@@ -214,7 +220,7 @@ grpc::Status DeviceServiceImpl::ToolStream(
 grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext* context,
                                               const v1::SimulatedHandRequest* req,
                                               v1::SimulatedHandResponse* out) {
-  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   if (!ctx_.device_link) return NoDevice();
   drivers::SpidarEmulator* emu = ctx_.device_link->emulator();
   if (!emu)

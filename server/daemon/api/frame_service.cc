@@ -62,6 +62,7 @@ grpc::Status ShuttingDown() {
 grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
                                            const v1::WatchFramesRequest* request,
                                            grpc::ServerWriter<v1::Frame>* writer) {
+  if (grpc::Status s = CheckRequest(*request); !s.ok()) return s;
   double rate = request->rate_hz() == 0 ? 60.0 : request->rate_hz();
   if (!(rate >= 1.0 && rate <= 1000.0))
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
@@ -69,6 +70,8 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
                             std::to_string(request->rate_hz()));
   FrameHub& hub = *ctx_.hub;
   if (hub.stopping()) return ShuttingDown();
+  Quotas::Stream slot;
+  if (grpc::Status s = HoldStream(ctx_, context, "WatchFrames", &slot); !s.ok()) return s;
   const int handle = hub.Register(rate);
   struct Unreg {
     FrameHub& h;
@@ -89,6 +92,7 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
   while (request->max_frames() == 0 || sent < request->max_frames()) {
     auto snap = hub.WaitNewer(last_seq, Clock::now() + std::chrono::seconds(5),
                               [&] { return context->IsCancelled(); });
+    slot.Touch();  // waiting for the loop is not the client's idleness
     if (context->IsCancelled())
       return grpc::Status(grpc::StatusCode::CANCELLED, "client cancelled");
     if (hub.stopping()) return ShuttingDown();
@@ -138,6 +142,7 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
     frame.mutable_loop()->set_last_work_us(f.work_ns / 1e3);
     frame.set_dropped_frames(dropped);
     if (!writer->Write(frame)) return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
+    slot.Touch();
     ++sent;
     // Pace to the client's rate; frames that a slow client could not take are counted, not queued.
     due += period;

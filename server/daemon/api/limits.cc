@@ -3,7 +3,11 @@
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/reflection.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <map>
+
+#include "daemon/api/auth.h"
 
 namespace rheo::daemon {
 namespace {
@@ -88,6 +92,68 @@ grpc::Status CheckStringLimits(const google::protobuf::Message& request) {
                       path + " is " + std::to_string(size) + " bytes; the limit is " +
                           std::to_string(limit) + " (it starts " + QuoteForMessage(start, 24) +
                           "...)");
+}
+
+namespace {
+
+struct MethodOfRequest {
+  std::string name;  // "SetParameters"
+  size_t max_bytes;
+};
+
+// Request type -> its method (each rheo.v1 method takes a type of its own).
+const std::map<const google::protobuf::Descriptor*, MethodOfRequest>& RequestMethods() {
+  static const auto* map = [] {
+    auto* m = new std::map<const google::protobuf::Descriptor*, MethodOfRequest>;
+    const auto* pool = google::protobuf::DescriptorPool::generated_pool();
+    for (const MethodRule& rule : MethodTable()) {
+      const std::string path(rule.path);  // "/pkg.Service/Method"
+      const size_t slash = path.rfind('/');
+      if (slash == std::string::npos || slash == 0) continue;
+      const auto* service = pool->FindServiceByName(path.substr(1, slash - 1));
+      const auto* method = service ? service->FindMethodByName(path.substr(slash + 1)) : nullptr;
+      if (!method) continue;
+      auto [it, fresh] = m->try_emplace(method->input_type(),
+                                        MethodOfRequest{method->name(), rule.max_request_bytes});
+      if (!fresh) it->second.max_bytes = std::min(it->second.max_bytes, rule.max_request_bytes);
+    }
+    return m;
+  }();
+  return *map;
+}
+
+std::string Bytes(size_t n) {
+  char b[32];
+  if (n >= (1u << 20))
+    std::snprintf(b, sizeof b, "%.1f MB", n / 1048576.0);
+  else if (n >= 1024)
+    std::snprintf(b, sizeof b, "%.1f KB", n / 1024.0);
+  else
+    std::snprintf(b, sizeof b, "%zu bytes", n);
+  return b;
+}
+
+}  // namespace
+
+size_t RequestLimit(const google::protobuf::Descriptor* request_type) {
+  auto it = RequestMethods().find(request_type);
+  return it == RequestMethods().end() ? MethodRule{}.max_request_bytes : it->second.max_bytes;
+}
+
+grpc::Status CheckRequest(const google::protobuf::Message& request) {
+  const auto& methods = RequestMethods();
+  auto it = methods.find(request.GetDescriptor());
+  const size_t limit = it == methods.end() ? MethodRule{}.max_request_bytes : it->second.max_bytes;
+  const size_t size = request.ByteSizeLong();
+  if (size > limit)
+    return grpc::Status(
+        grpc::StatusCode::RESOURCE_EXHAUSTED,
+        (it == methods.end() ? request.GetDescriptor()->name() : it->second.name) + ": the " +
+            "request is " + Bytes(size) + "; the limit for this method is " + Bytes(limit) +
+            (limit < kMaxSketchRequestBytes
+                 ? " (only sketches may be larger, up to " + Bytes(kMaxSketchRequestBytes) + ")"
+                 : std::string(" (a sketch and its photo)")));
+  return CheckStringLimits(request);
 }
 
 }  // namespace rheo::daemon

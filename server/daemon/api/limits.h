@@ -26,8 +26,14 @@ std::string QuoteForMessage(std::string_view s, size_t max = 40);
 size_t StringFieldLimit(std::string_view field);
 
 /// Walks every string field of `request` and of the messages inside it: INVALID_ARGUMENT naming
-/// the first field over its limit, the limit and the start of the value; OK otherwise. Every
-/// handler calls it first.
+/// the first field over its limit, the limit and the start of the value; OK otherwise.
 grpc::Status CheckStringLimits(const google::protobuf::Message& request);
+
+/// The check every handler makes first, on every request message it reads: the message's size
+/// against its method's limit in the role table (RESOURCE_EXHAUSTED naming the method, the size
+/// and the limit; unknown fields count), then CheckStringLimits.
+grpc::Status CheckRequest(const google::protobuf::Message& request);
+/// The limit CheckRequest applies to a request of this type (its method's entry) [bytes].
+size_t RequestLimit(const google::protobuf::Descriptor* request_type);
 
 }  // namespace rheo::daemon

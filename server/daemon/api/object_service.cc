@@ -62,7 +62,7 @@ bool NextJobEvent(grpc::ServerContext& context, const DaemonContext& ctx, Job<Jo
 grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
                                              const v1::CreateObjectRequest* request,
                                              grpc::ServerWriter<v1::CreateObjectProgress>* writer) {
-  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*request); !s.ok()) return s;
   if (Status s = ValidateCreateRequest(*request); !s.ok()) return ToGrpc(s.error());
   if (ctx_.shutting_down->load())
     return grpc::Status(grpc::StatusCode::UNAVAILABLE, "shutting down");
@@ -97,6 +97,12 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
     if (earlier.ok()) return Replay(*earlier, *request, writer);
     if (earlier.error().code != ErrorCode::kNotFound) return ToGrpc(earlier.error());
   }
+  Quotas::Stream slot;
+  if (grpc::Status s = HoldStream(ctx_, context, "CreateObject", &slot); !s.ok()) return s;
+  Quotas::Job job_slot;
+  if (ctx_.quotas)
+    if (grpc::Status s = ctx_.quotas->StartJob(CallerOf(context).token_name, &job_slot); !s.ok())
+      return s;
   Store* store = ctx_.store;
   const BuildLimits limits = ctx_.build_limits;
   auto job = ctx_.jobs->Submit(
@@ -159,6 +165,7 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
   bool sent_object = false;
   std::optional<grpc::Status> stop;
   while (!done) {
+    slot.Touch();  // the build is the server's time, not the client's idleness
     if (!NextJobEvent(*context, ctx_, **job, std::chrono::milliseconds(50), ev, done, stop)) {
       if (stop) return *stop;
       continue;
@@ -184,6 +191,7 @@ grpc::Status ObjectServiceImpl::CreateObject(grpc::ServerContext* context,
       (*job)->Cancel();
       return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
     }
+    slot.Touch();
   }
   if (!sent_object)
     return grpc::Status(grpc::StatusCode::INTERNAL, job_id + " ended without a result");
@@ -224,7 +232,7 @@ grpc::Status ObjectServiceImpl::Replay(const StoredObject& stored,
 grpc::Status ObjectServiceImpl::CancelJob(grpc::ServerContext* context,
                                           const v1::CancelJobRequest* request,
                                           v1::CancelJobResponse* out) {
-  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*request); !s.ok()) return s;
   if (request->job_id().empty()) return ToGrpc(InvalidArgument("job_id is empty"));
   const Caller caller = CallerOf(context);
   {
@@ -245,7 +253,7 @@ grpc::Status ObjectServiceImpl::CancelJob(grpc::ServerContext* context,
 grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext* context,
                                                const v1::ExtractContourRequest* request,
                                                v1::ContourReport* out) {
-  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*request); !s.ok()) return s;
   v1::CreateObjectRequest check;
   *check.mutable_sketch() = request->sketch();
   *check.mutable_contour_options() = request->options();
@@ -290,7 +298,7 @@ grpc::Status ObjectServiceImpl::ExtractContour(grpc::ServerContext* context,
 grpc::Status ObjectServiceImpl::ListObjects(grpc::ServerContext*,
                                             const v1::ListObjectsRequest* request,
                                             v1::ListObjectsResponse* out) {
-  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*request); !s.ok()) return s;
   uint32_t n = request->page_size() == 0 ? 100 : std::min<uint32_t>(request->page_size(), 1000);
   std::string next;
   auto page = ctx_.store->List(n, request->page_token(), &next);
@@ -303,7 +311,7 @@ grpc::Status ObjectServiceImpl::ListObjects(grpc::ServerContext*,
 
 grpc::Status ObjectServiceImpl::GetObject(grpc::ServerContext*, const v1::GetObjectRequest* request,
                                           v1::Object* out) {
-  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*request); !s.ok()) return s;
   auto o = ctx_.store->Get(request->id(), /*with_mesh=*/false);
   if (!o.ok()) return StoreError(o.error(), request->id());
   return ObjectFromMeta(*o, out);
@@ -312,16 +320,18 @@ grpc::Status ObjectServiceImpl::GetObject(grpc::ServerContext*, const v1::GetObj
 grpc::Status ObjectServiceImpl::DeleteObject(grpc::ServerContext*,
                                              const v1::DeleteObjectRequest* request,
                                              v1::DeleteObjectResponse*) {
-  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*request); !s.ok()) return s;
   if (Status s = ctx_.store->Delete(request->id()); !s.ok())
     return StoreError(s.error(), request->id());
   return grpc::Status::OK;
 }
 
-grpc::Status ObjectServiceImpl::ExportObject(grpc::ServerContext*,
+grpc::Status ObjectServiceImpl::ExportObject(grpc::ServerContext* context,
                                              const v1::ExportObjectRequest* request,
                                              grpc::ServerWriter<v1::ExportChunk>* writer) {
-  if (grpc::Status s = CheckStringLimits(*request); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*request); !s.ok()) return s;
+  Quotas::Stream slot;
+  if (grpc::Status s = HoldStream(ctx_, context, "ExportObject", &slot); !s.ok()) return s;
   auto o = ctx_.store->Get(request->id(), /*with_mesh=*/true);
   if (!o.ok()) return StoreError(o.error(), request->id());
   std::string data, type;
@@ -351,6 +361,7 @@ grpc::Status ObjectServiceImpl::ExportObject(grpc::ServerContext*,
     if (pos == 0) c.set_media_type(type);
     c.set_data(data.substr(pos, kChunk));
     if (!writer->Write(c)) return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
+    slot.Touch();
     if (data.empty()) break;
   }
   return grpc::Status::OK;

@@ -67,8 +67,9 @@ Status CheckFitsTheTick(const DaemonContext& ctx, const sim::Model& model,
 
 }  // namespace
 
-grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetSceneRequest*,
+grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetSceneRequest* req,
                                         v1::Scene* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   out->set_paused(ctx_.engine->paused());
   out->set_sim_time(ctx_.engine->sim_time());
   sim::Parameters defaults;
@@ -96,7 +97,7 @@ grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetScene
 
 grpc::Status SceneServiceImpl::AddToScene(grpc::ServerContext*, const v1::AddToSceneRequest* req,
                                           v1::SceneObject* out) {
-  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   return AddObjectToScene(ctx_, *req, /*fresh=*/nullptr, out);
 }
 
@@ -236,6 +237,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
 grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
                                                const v1::RemoveFromSceneRequest* req,
                                                v1::RemoveFromSceneResponse*) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
   if (!ctx_.scene->Find(req->instance_id()))
     return ToGrpc(
@@ -251,7 +253,7 @@ grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
 grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
                                              const v1::SetParametersRequest* req,
                                              v1::SetParametersResponse* out) {
-  if (grpc::Status s = CheckStringLimits(*req); !s.ok()) return s;
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
   std::vector<std::shared_ptr<const SceneEntry>> targets;
   if (req->instance_id() == 0) {
@@ -324,6 +326,7 @@ grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
 grpc::Status SceneServiceImpl::ListParameters(grpc::ServerContext*,
                                               const v1::ListParametersRequest* req,
                                               v1::ListParametersResponse* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   sim::Parameters p;
   if (req->instance_id() != 0) {
     auto e = ctx_.scene->Find(req->instance_id());
@@ -341,6 +344,7 @@ grpc::Status SceneServiceImpl::ListParameters(grpc::ServerContext*,
 
 grpc::Status SceneServiceImpl::Control(grpc::ServerContext*, const v1::ControlRequest* request,
                                        v1::ControlResponse* out) {
+  if (grpc::Status s = CheckRequest(*request); !s.ok()) return s;
   Command c;
   switch (request->command()) {
     case v1::RUN_COMMAND_PAUSE: c.type = Command::Type::kPause; break;

@@ -10,7 +10,9 @@
 
 #include "daemon/api/auth.h"
 #include "daemon/api/lease.h"
+#include "daemon/api/limits.h"
 #include "daemon/api/object_builder.h"
+#include "daemon/api/quota.h"
 #include "daemon/api/scene.h"
 #include "daemon/device/device_link.h"
 #include "daemon/jobs/jobs.h"
@@ -49,6 +51,7 @@ struct DaemonContext {
   DeviceLink* device_link = nullptr;  // null with --device none
   LeaseManager* leases = nullptr;
   TokenRegistry* tokens = nullptr;
+  Quotas* quotas = nullptr;  // per-token limits; null: none
   std::chrono::steady_clock::time_point started;
   std::atomic<bool>* shutting_down = nullptr;
   Store* store = nullptr;
@@ -61,6 +64,11 @@ struct DaemonContext {
   sim::CostCoefficients tick_cost;
   double sim_budget_ns = 600'000.0;
 };
+
+/// Counts a stream against its caller's token for as long as `slot` lives (RESOURCE_EXHAUSTED
+/// past the limit); the handler touches the slot on every message it reads or writes.
+grpc::Status HoldStream(const DaemonContext& ctx, grpc::ServerContext* context,
+                        std::string_view method, Quotas::Stream* slot);
 
 /// How long a service waits for the loop to apply a command it submitted [ns].
 inline constexpr int64_t kApplyTimeoutNs = 2'000'000'000;
