@@ -61,10 +61,11 @@ TEST(RheodLimits, EveryMethodRefusesARequestOverItsSize) {
         v1::Object::descriptor(), v1::DeviceStatus::descriptor(), v1::Identity::descriptor()})
     ASSERT_NE(m, nullptr);  // links each file's descriptors into this test's pool
   int checked = 0;
-  for (const char* service : {"rheo.v1.DaemonService", "rheo.v1.FrameService",
-                              "rheo.v1.SceneService", "rheo.v1.ObjectService",
-                              "rheo.v1.DeviceService", "rheo.v1.AuthService"}) {
-    const pb::ServiceDescriptor* s = pb::DescriptorPool::generated_pool()->FindServiceByName(service);
+  for (const char* service :
+       {"rheo.v1.DaemonService", "rheo.v1.FrameService", "rheo.v1.SceneService",
+        "rheo.v1.ObjectService", "rheo.v1.DeviceService", "rheo.v1.AuthService"}) {
+    const pb::ServiceDescriptor* s =
+        pb::DescriptorPool::generated_pool()->FindServiceByName(service);
     ASSERT_NE(s, nullptr) << service;
     for (int i = 0; i < s->method_count(); ++i) {
       const std::string name = s->method(i)->name();
@@ -257,8 +258,8 @@ TEST(RheodLimits, MeshJobsPerTokenAndOnlyTheOwnerOrAnAdminCancels) {
 }
 
 TEST(RheodLimits, AStalledStreamEndsAfterTheIdleTimeoutAndABusyOneStays) {
-  RheodProcess d({"--http", "off", "--device", "network", "--stream-idle", "1",
-                  "--watchdog-timeout", "100"});
+  RheodProcess d(
+      {"--http", "off", "--device", "network", "--stream-idle", "1", "--watchdog-timeout", "100"});
   ASSERT_TRUE(d.started()) << d.log();
   auto dev = v1::DeviceService::NewStub(d.channel());
   v1::Lease lease;

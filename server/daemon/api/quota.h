@@ -13,6 +13,8 @@
 // CheckRequest (limits.h). Thread-safe; never touched by the loop.
 #pragma once
 
+#include <grpcpp/support/status.h>
+
 #include <chrono>
 #include <cstdint>
 #include <map>
@@ -20,8 +22,6 @@
 #include <mutex>
 #include <string>
 #include <string_view>
-
-#include <grpcpp/support/status.h>
 
 namespace grpc {
 class ServerContextBase;
