@@ -4,6 +4,7 @@
 #include <fstream>
 #include <iostream>
 
+#include "rheo/client/channel.h"
 #include "rheo/v1/objects.grpc.pb.h"
 #include "rheoctl.h"
 
@@ -16,7 +17,7 @@ int ObjectCreate(const Global& g, const std::string& file, const std::string& na
   rheo::v1::CreateObjectRequest req;
   if (!LoadSketch(file, req.mutable_sketch())) return 3;
   if (!background.empty() &&
-      !ReadFile(background, *req.mutable_sketch()->mutable_background_image())) {
+      !rheo::client::ReadWholeFile(background, *req.mutable_sketch()->mutable_background_image())) {
     std::cerr << "INVALID_ARGUMENT: cannot read " << background << "\n";
     return 3;
   }

@@ -89,18 +89,9 @@ void SetDeadline(grpc::ClientContext& ctx, const Global& g, double default_s) {
                    std::chrono::milliseconds(static_cast<int64_t>(t * 1000)));
 }
 
-bool ReadFile(const std::string& path, std::string& out) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return false;
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  out = ss.str();
-  return true;
-}
-
 bool LoadSketch(const std::string& path, rheo::v1::Sketch* sketch) {
   std::string data;
-  if (!ReadFile(path, data)) {
+  if (!rheo::client::ReadWholeFile(path, data)) {
     std::cerr << "INVALID_ARGUMENT: cannot read " << path << "\n";
     return false;
   }

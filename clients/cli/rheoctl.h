@@ -52,9 +52,6 @@ grpc::Status Unary(const Global& g, Method method, const Request& request, Respo
   return ((*stub).*method)(&ctx, request, response);
 }
 
-/// The whole file into `out`; false when it cannot be read.
-bool ReadFile(const std::string& path, std::string& out);
-
 /// A sketch file: stroke JSON, a contour JSON ({"contour": [[x, y], ...]}) or a PNG/JPEG picture.
 /// False (with a message) when it cannot be read.
 bool LoadSketch(const std::string& path, rheo::v1::Sketch* sketch);

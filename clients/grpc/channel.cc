@@ -37,7 +37,9 @@ class TokenInterceptorFactory final : public grpc::experimental::ClientIntercept
   std::string header_;  // outlives every interceptor: the channel owns the factory
 };
 
-bool Slurp(const std::string& path, std::string& out) {
+}  // namespace
+
+bool ReadWholeFile(const std::string& path, std::string& out) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return false;
   std::ostringstream ss;
@@ -45,8 +47,6 @@ bool Slurp(const std::string& path, std::string& out) {
   out = ss.str();
   return true;
 }
-
-}  // namespace
 
 std::shared_ptr<grpc::Channel> Connect(const ChannelOptions& o, std::string* error) {
   std::shared_ptr<grpc::ChannelCredentials> creds;
@@ -56,12 +56,12 @@ std::shared_ptr<grpc::Channel> Connect(const ChannelOptions& o, std::string* err
     creds = grpc::InsecureChannelCredentials();
   } else {
     grpc::SslCredentialsOptions ssl;
-    if (!Slurp(o.tls_ca_file, ssl.pem_root_certs)) {
+    if (!ReadWholeFile(o.tls_ca_file, ssl.pem_root_certs)) {
       if (error) *error = "cannot read the CA certificate " + o.tls_ca_file;
       return nullptr;
     }
-    if (!o.tls_cert_file.empty() && (!Slurp(o.tls_cert_file, ssl.pem_cert_chain) ||
-                                     !Slurp(o.tls_key_file, ssl.pem_private_key))) {
+    if (!o.tls_cert_file.empty() && (!ReadWholeFile(o.tls_cert_file, ssl.pem_cert_chain) ||
+                                     !ReadWholeFile(o.tls_key_file, ssl.pem_private_key))) {
       if (error)
         *error = "cannot read the client certificate " + o.tls_cert_file + " or its key " +
                  o.tls_key_file;
@@ -88,7 +88,7 @@ std::string DefaultAdminTokenPath(const std::string& data_dir) {
 
 std::string ReadTokenFile(const std::string& path, std::string* error) {
   std::string s;
-  if (!Slurp(path, s)) {
+  if (!ReadWholeFile(path, s)) {
     if (error) *error = "cannot read the token file " + path;
     return "";
   }

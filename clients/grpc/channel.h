@@ -31,5 +31,7 @@ std::string DefaultAdminTokenPath(const std::string& data_dir = "");
 /// The token in `path` (surrounding whitespace removed); "" with `error` set when it cannot be
 /// read.
 std::string ReadTokenFile(const std::string& path, std::string* error);
+/// The whole file (binary); false when it cannot be read.
+bool ReadWholeFile(const std::string& path, std::string& out);
 
 }  // namespace rheo::client

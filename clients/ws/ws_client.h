@@ -14,16 +14,24 @@ struct Message {
   std::string data;
 };
 
+/// wss:// and https:// instead of ws:// and http://.
+struct Tls {
+  std::string ca_file;    // PEM CA the server's certificate must chain to
+  std::string cert_file;  // a client certificate and its key (mutual TLS), or empty
+  std::string key_file;
+  std::string server_name = "localhost";  // sent as SNI and checked against the certificate
+};
+
 class Client {
  public:
-  /// Connects to ws://host:port/rpc (`target` may name another path). `origin`, when not empty,
-  /// is sent as the Origin header as a browser would. nullptr with `error` set on failure
-  /// (the HTTP status and body of a refused upgrade among it). `receive_buffer_bytes` > 0 fixes
-  /// the socket's receive buffer (a viewer on a slow link).
+  /// Connects to ws://host:port/rpc (`target` may name another path; wss:// with `tls`).
+  /// `origin`, when not empty, is sent as the Origin header as a browser would. nullptr with
+  /// `error` set on failure (the HTTP status and body of a refused upgrade among it).
+  /// `receive_buffer_bytes` > 0 fixes the socket's receive buffer (a viewer on a slow link).
   static std::unique_ptr<Client> Connect(const std::string& host, int port, std::string* error,
                                          const std::string& origin = "",
                                          const std::string& target = "/rpc",
-                                         int receive_buffer_bytes = 0);
+                                         int receive_buffer_bytes = 0, const Tls* tls = nullptr);
   ~Client();
 
   bool SendText(const std::string& text);
@@ -43,9 +51,10 @@ class Client {
   std::string error_;
 };
 
-/// One HTTP/1.1 GET (or another method) on host:port; returns the status code (0 on error) and
-/// fills `body`.
+/// One HTTP/1.1 GET (or another method) on host:port (https with `tls`); returns the status code
+/// (0 on error, the reason in `body`) and fills `body`.
 int HttpRequest(const std::string& host, int port, const std::string& method,
-                const std::string& target, std::string* body, std::string* content_type = nullptr);
+                const std::string& target, std::string* body, std::string* content_type = nullptr,
+                const Tls* tls = nullptr);
 
 }  // namespace rheo::ws

@@ -382,18 +382,8 @@ int main(int argc, char** argv) {
   }
   for (const auto& [flag, address] :
        {std::pair<const char*, std::string>{"--listen", flags.listen}, {"--http", flags.http}}) {
-    // The studio's gateway serves plaintext only: TLS covers gRPC, not --http.
-    const bool covered = tls && std::string(flag) == "--listen";
-    if (address == "off" || covered || IsLoopbackListen(address)) continue;
-    if (!flags.insecure && std::string(flag) == "--http") {
-      spdlog::error(
-          "--http {} is not a loopback address, and the studio's gateway serves plaintext only: "
-          "tokens and sketches would cross the network readable. Serve it on 127.0.0.1 and "
-          "reach it through a TLS reverse proxy or an SSH tunnel (docs/security.md), or accept "
-          "the risk with --insecure",
-          address);
-      return 1;
-    }
+    // TLS covers both: gRPC and the studio's gateway (https and wss).
+    if (address == "off" || tls || IsLoopbackListen(address)) continue;
     if (!flags.insecure) {
       spdlog::error(
           "{} {} is not a loopback address and there is no TLS: tokens and every sketch would "
@@ -619,6 +609,9 @@ int main(int argc, char** argv) {
     web.web_root =
         flags.web_root.empty() ? DefaultWebRoot() : std::filesystem::path(flags.web_root);
     web.max_connections = flags.http_connections;
+    web.tls_cert_pem = tls_cert_pem;  // https and wss with the same certificate as gRPC
+    web.tls_key_pem = tls_key_pem;
+    web.tls_client_ca_pem = tls_ca_pem;
     grpc::ChannelArguments channel_args;
     channel_args.SetMaxReceiveMessageSize(64 << 20);
     // A slow page must hold back its own stream at the daemon (whose frame service then skips
@@ -644,15 +637,17 @@ int main(int argc, char** argv) {
           "does), or the 3D view will not load",
           web.web_root.string());
     std::string web_host = flags.http.substr(0, flags.http.rfind(':'));
-    spdlog::info("studio at http://{}:{}/ (watch-only viewers: http://{}:{}/?view)", web_host,
-                 gateway->port(), web_host, gateway->port());
+    const char* scheme = tls ? "https" : "http";
+    spdlog::info("studio at {}://{}:{}/ (watch-only viewers: {}://{}:{}/?view){}", scheme, web_host,
+                 gateway->port(), scheme, web_host, gateway->port(),
+                 tls ? (tls_ca_pem.empty() ? " over TLS" : " over mutual TLS") : "");
   }
   // Plaintext where others can listen: said once a minute, so nobody forgets it is on.
   boost::asio::steady_timer insecure_warning(io);
   std::function<void()> warn_insecure = [&] {
     std::string where;
     if (relay_insecure) where = "--listen " + flags.listen;
-    if (flags.http != "off" && !IsLoopbackListen(flags.http))
+    if (!tls && flags.http != "off" && !IsLoopbackListen(flags.http))
       where += (where.empty() ? "" : " and ") + std::string("--http ") + flags.http;
     if (where.empty()) return;
     spdlog::warn(

@@ -400,45 +400,6 @@ TEST(RheodAuth, PlaintextOnANonLoopbackAddressIsRefusedUnlessInsecure) {
 
 // ---- TLS, with a CA made here ----
 
-class Pki {
- public:
-  Pki() {
-    dir_ = std::filesystem::temp_directory_path() / ("rheo-pki-" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir_);
-    ok_ = Ca("ca") && Ca("other-ca") &&
-          Leaf("server", "ca", "subjectAltName=DNS:localhost,IP:127.0.0.1") &&
-          Leaf("client", "ca", "extendedKeyUsage=clientAuth") &&
-          Leaf("stranger", "other-ca", "extendedKeyUsage=clientAuth");
-  }
-  ~Pki() { std::filesystem::remove_all(dir_); }
-  bool ok() const { return ok_; }
-  std::string operator()(const std::string& name) const { return (dir_ / name).string(); }
-
- private:
-  bool Run(std::vector<std::string> args) {
-    args.insert(args.begin(), "/usr/bin/openssl");
-    RunResult r = RunProgram(args);
-    if (r.exit_code != 0) ADD_FAILURE() << "openssl: " << r.err;
-    return r.exit_code == 0;
-  }
-  bool Ca(const std::string& n) {
-    return Run({"req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1",
-                "-nodes", "-keyout", (*this)(n + ".key"), "-out", (*this)(n + ".pem"), "-days", "2",
-                "-subj", "/CN=rheo test " + n});
-  }
-  bool Leaf(const std::string& n, const std::string& ca, const std::string& ext) {
-    std::ofstream(dir_ / (n + ".ext")) << ext << "\n";
-    return Run({"req", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes",
-                "-keyout", (*this)(n + ".key"), "-out", (*this)(n + ".csr"), "-subj",
-                "/CN=" + (n == "server" ? std::string("localhost") : n)}) &&
-           Run({"x509", "-req", "-in", (*this)(n + ".csr"), "-CA", (*this)(ca + ".pem"), "-CAkey",
-                (*this)(ca + ".key"), "-CAcreateserial", "-out", (*this)(n + ".pem"), "-days", "2",
-                "-extfile", (*this)(n + ".ext")});
-  }
-  std::filesystem::path dir_;
-  bool ok_ = false;
-};
-
 grpc::Status TlsStatus(const RheodProcess& d, const std::string& ca, const std::string& cert = "",
                        const std::string& key = "") {
   rheo::client::ChannelOptions o;

@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <random>
 
 #include "rheo/client/channel.h"
@@ -115,10 +116,10 @@ RheodProcess::RheodProcess(std::vector<std::string> extra_args) {
     size_t end = l.find_first_not_of("0123456789.:", start);
     address_ = l.substr(start, end - start);
   }
-  if (http_on && !address_.empty() && WaitForLog("studio at http://", std::chrono::seconds(10))) {
+  if (http_on && !address_.empty() && WaitForLog("studio at http", std::chrono::seconds(10))) {
     l = log();
-    at = l.find("studio at http://");
-    size_t colon = l.find(':', at + std::string("studio at http://").size());
+    at = l.find("://", l.find("studio at http"));  // http:// or https://
+    size_t colon = at == std::string::npos ? at : l.find(':', at + 3);
     if (colon != std::string::npos) http_port_ = std::atoi(l.c_str() + colon + 1);
   }
 }
@@ -236,6 +237,49 @@ std::string DenseStrokeBomb() {
     j += "]";
   }
   return j + "]}";
+}
+
+Pki::Pki() {
+  dir_ = (std::filesystem::temp_directory_path() /
+          ("rheo-pki-" + std::to_string(::getpid()) + "-" + std::to_string(std::rand())))
+             .string();
+  std::filesystem::create_directories(dir_);
+  ok_ = Ca("ca") && Ca("other-ca") &&
+        Leaf("server", "ca", "subjectAltName=DNS:localhost,IP:127.0.0.1") &&
+        Leaf("client", "ca", "extendedKeyUsage=clientAuth") &&
+        Leaf("stranger", "other-ca", "extendedKeyUsage=clientAuth");
+}
+
+Pki::~Pki() {
+  std::error_code ec;
+  std::filesystem::remove_all(dir_, ec);
+}
+
+std::string Pki::operator()(const std::string& name) const {
+  return (std::filesystem::path(dir_) / name).string();
+}
+
+bool Pki::Run(std::vector<std::string> args) {
+  args.insert(args.begin(), "/usr/bin/openssl");
+  RunResult r = RunProgram(args);
+  if (r.exit_code != 0) ADD_FAILURE() << "openssl: " << r.err;
+  return r.exit_code == 0;
+}
+
+bool Pki::Ca(const std::string& n) {
+  return Run({"req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes",
+              "-keyout", (*this)(n + ".key"), "-out", (*this)(n + ".pem"), "-days", "2", "-subj",
+              "/CN=rheo test " + n});
+}
+
+bool Pki::Leaf(const std::string& n, const std::string& ca, const std::string& ext) {
+  std::ofstream((*this)(n + ".ext")) << ext << "\n";
+  return Run({"req", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes",
+              "-keyout", (*this)(n + ".key"), "-out", (*this)(n + ".csr"), "-subj",
+              "/CN=" + (n == "server" ? std::string("localhost") : n)}) &&
+         Run({"x509", "-req", "-in", (*this)(n + ".csr"), "-CA", (*this)(ca + ".pem"), "-CAkey",
+              (*this)(ca + ".key"), "-CAcreateserial", "-out", (*this)(n + ".pem"), "-days", "2",
+              "-extfile", (*this)(n + ".ext")});
 }
 
 RunResult RunProgram(const std::vector<std::string>& args) {

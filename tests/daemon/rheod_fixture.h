@@ -94,6 +94,24 @@ inline grpc::Status CallEmpty(const std::shared_ptr<grpc::Channel>& channel,
 /// limits allow (about 2 s in the sketch stage), for tests that need a job that runs a while.
 std::string DenseStrokeBomb();
 
+/// A certificate authority made for one test with Debian's openssl: "ca" and "other-ca", a
+/// "server" leaf for localhost and 127.0.0.1 signed by ca, a "client" leaf signed by ca and a
+/// "stranger" client leaf signed by other-ca (NAME.pem and NAME.key each). Removed afterwards.
+class Pki {
+ public:
+  Pki();
+  ~Pki();
+  bool ok() const { return ok_; }
+  std::string operator()(const std::string& name) const;
+
+ private:
+  bool Run(std::vector<std::string> args);
+  bool Ca(const std::string& n);
+  bool Leaf(const std::string& n, const std::string& ca, const std::string& ext);
+  std::string dir_;
+  bool ok_ = false;
+};
+
 /// Runs a program and captures stdout, stderr and the exit code.
 struct RunResult {
   int exit_code = -1;

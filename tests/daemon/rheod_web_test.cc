@@ -31,10 +31,10 @@ class Rpc {
  public:
   // Sends `token` first ({"auth": ...}); the daemon's admin token unless given ("" sends none).
   explicit Rpc(const RheodProcess& d, const std::string& origin = "", int receive_buffer = 0,
-               std::optional<std::string> token = std::nullopt) {
+               std::optional<std::string> token = std::nullopt, const ws::Tls* tls = nullptr) {
     std::string error;
-    client_ =
-        ws::Client::Connect("127.0.0.1", d.http_port(), &error, origin, "/rpc", receive_buffer);
+    client_ = ws::Client::Connect("127.0.0.1", d.http_port(), &error, origin, "/rpc",
+                                  receive_buffer, tls);
     EXPECT_TRUE(client_) << error;
     const std::string t = token ? *token : d.admin_token();
     if (client_ && !t.empty()) {
@@ -463,6 +463,66 @@ TEST(RheodWeb, HttpOffAndABusyPortAreClear) {
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("cannot serve the studio on"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("--http off"), std::string::npos) << r.err;
+}
+
+// The studio over TLS: https and wss with the gRPC port's certificate, on a non-loopback address
+// without --insecure; plaintext and a wrong CA refused; with a client CA, only a browser (here a
+// client) holding a certificate it signed gets in.
+TEST(RheodWeb, TheStudioOverTlsAndMutualTls) {
+  Pki pki;
+  ASSERT_TRUE(pki.ok());
+  std::string body, error;
+  ws::Tls right, wrong;
+  right.ca_file = pki("ca.pem");
+  wrong.ca_file = pki("other-ca.pem");
+  {
+    RheodProcess d(
+        {"--http", "0.0.0.0:0", "--tls-cert", pki("server.pem"), "--tls-key", pki("server.key")});
+    ASSERT_TRUE(d.started()) << d.log();
+    ASSERT_GT(d.http_port(), 0) << d.log();
+    EXPECT_NE(d.log().find("studio at https://0.0.0.0:"), std::string::npos) << d.log();
+    EXPECT_NE(d.log().find("over TLS"), std::string::npos) << d.log();
+    EXPECT_EQ(d.log().find("--insecure"), std::string::npos) << d.log();
+    EXPECT_EQ(ws::HttpRequest("127.0.0.1", d.http_port(), "GET", "/", &body, nullptr, &right), 200)
+        << body;
+    EXPECT_NE(body.find("<"), std::string::npos);
+    EXPECT_EQ(ws::HttpRequest("127.0.0.1", d.http_port(), "GET", "/", &body), 0)
+        << "plaintext HTTP to the TLS port: " << body;
+    EXPECT_EQ(ws::HttpRequest("127.0.0.1", d.http_port(), "GET", "/", &body, nullptr, &wrong), 0)
+        << "a CA that did not sign the server: " << body;
+    EXPECT_FALSE(ws::Client::Connect("127.0.0.1", d.http_port(), &error));
+    Rpc rpc(d, "https://127.0.0.1:" + std::to_string(d.http_port()), 0, std::nullopt, &right);
+    ASSERT_TRUE(rpc.ok());
+    auto who = rpc.Call(1, "rheo.v1.AuthService/WhoAmI");
+    EXPECT_EQ(Code(who), 0) << who.status.dump();
+    ASSERT_EQ(who.messages.size(), 1u);
+    EXPECT_EQ(who.messages[0].value("tokenName", ""), "admin") << who.messages[0].dump();
+    EXPECT_EQ(d.Terminate(10s), 0) << d.log();
+  }
+  {
+    RheodProcess d({"--tls-cert", pki("server.pem"), "--tls-key", pki("server.key"),
+                    "--tls-client-ca", pki("ca.pem")});
+    ASSERT_TRUE(d.started()) << d.log();
+    ASSERT_GT(d.http_port(), 0) << d.log();
+    EXPECT_NE(d.log().find("over mutual TLS"), std::string::npos) << d.log();
+    EXPECT_EQ(ws::HttpRequest("127.0.0.1", d.http_port(), "GET", "/", &body, nullptr, &right), 0)
+        << "no client certificate: " << body;
+    ws::Tls stranger = right;
+    stranger.cert_file = pki("stranger.pem");
+    stranger.key_file = pki("stranger.key");
+    EXPECT_EQ(ws::HttpRequest("127.0.0.1", d.http_port(), "GET", "/", &body, nullptr, &stranger), 0)
+        << "a client certificate another CA signed: " << body;
+    ws::Tls mutual = right;
+    mutual.cert_file = pki("client.pem");
+    mutual.key_file = pki("client.key");
+    EXPECT_EQ(ws::HttpRequest("127.0.0.1", d.http_port(), "GET", "/", &body, nullptr, &mutual), 200)
+        << body;
+    Rpc rpc(d, "", 0, std::nullopt, &mutual);
+    ASSERT_TRUE(rpc.ok());
+    auto who = rpc.Call(1, "rheo.v1.AuthService/WhoAmI");
+    EXPECT_EQ(Code(who), 0) << who.status.dump();
+    EXPECT_EQ(d.Terminate(10s), 0) << d.log();
+  }
 }
 
 }  // namespace

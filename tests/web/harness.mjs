@@ -72,7 +72,7 @@ export async function startDaemon(args, { device = 'none', extra = [], httpPort 
   dataDir = dataDir || mkdtempSync(join(tmpdir(), 'rheo-web-'));
   const argv = [
     '--listen', '127.0.0.1:0',
-    '--http', `127.0.0.1:${httpPort}`,
+    ...(extra.includes('--http') ? [] : ['--http', `127.0.0.1:${httpPort}`]),
     '--web-root', args.webRoot,
     '--data-dir', dataDir,
     '--device', device,
@@ -86,7 +86,7 @@ export async function startDaemon(args, { device = 'none', extra = [], httpPort 
     const onData = (chunk) => {
       d.log += chunk.toString();
       const grpc = d.log.match(/listening on (\S+?):(\d+)/);
-      const http = d.log.match(/studio at (http:\/\/[^\s/]+:(\d+))\//);
+      const http = d.log.match(/studio at (https?:\/\/[^\s/]+:(\d+))\//);
       if (grpc && http && !d.url) {
         d.grpcPort = Number(grpc[2]);
         d.url = http[1];
@@ -140,11 +140,16 @@ let lastToken = '';
 /**
  * A page of the studio, with console errors collected (they fail the test). It opens with the
  * last started daemon's admin token in the URL fragment unless `token` is given ('' for none).
+ * `ignoreHTTPSErrors`: accept a certificate of a CA the browser does not know (a test's own).
  */
-export async function openPage(browser, url, { width = 1440, height = 900, token = undefined } = {}) {
+export async function openPage(
+  browser,
+  url,
+  { width = 1440, height = 900, token = undefined, ignoreHTTPSErrors = false } = {},
+) {
   const t = token === undefined ? lastToken : token;
   if (t) url += `#token=${encodeURIComponent(t)}`;
-  const context = await browser.newContext({ viewport: { width, height }, deviceScaleFactor: 1 });
+  const context = await browser.newContext({ viewport: { width, height }, deviceScaleFactor: 1, ignoreHTTPSErrors });
   const page = await context.newPage();
   page.errors = [];
   page.on('pageerror', (e) => page.errors.push(String(e)));

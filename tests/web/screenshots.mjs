@@ -1,6 +1,7 @@
 // Makes the studio's pictures in docs/: studio.png (an object in the 3D view, pressed by the
 // simulated hand), studio-sketch.png (the pad with its contour preview), studio-viewer.png (a
-// watch-only page). Runs against a rheod of its own with --device sim-spidar-g.
+// watch-only page), studio-sign-in.png (a page opened without a token). Runs against a rheod of its
+// own with --device sim-spidar-g.
 //
 //   node tests/web/screenshots.mjs --rheod build/dev/server/daemon/rheod --web-root clients/web
 
@@ -54,7 +55,10 @@ try {
   T('pressed');
 
   await viewer.screenshot({ path: docs('studio-viewer.png') });
-  console.log('wrote docs/studio.png, docs/studio-sketch.png, docs/studio-viewer.png');
+  const anon = await openPage(browser, `${daemon.url}/`, { width: 1000, height: 560, token: '' });
+  await anon.waitForSelector('#sign-in', { timeout: 10000 });
+  await anon.screenshot({ path: docs('studio-sign-in.png') });
+  console.log('wrote docs/studio.png, docs/studio-sketch.png, docs/studio-viewer.png, docs/studio-sign-in.png');
 } catch (e) {
   failed = true;
   console.error(e);

@@ -6,10 +6,13 @@
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
+#include <boost/asio/ssl.hpp>
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
 #include <boost/beast/websocket.hpp>
+#include <boost/beast/websocket/ssl.hpp>
 #include <deque>
 #include <map>
 #include <mutex>
@@ -28,14 +31,21 @@ namespace http = beast::http;
 namespace websocket = beast::websocket;
 namespace net = boost::asio;
 using tcp = net::ip::tcp;
+using TlsStream = beast::ssl_stream<beast::tcp_stream>;
 
-class WsSession;
+// What the gateway keeps of an open WebSocket session, whichever its transport.
+class Session {
+ public:
+  virtual ~Session() = default;
+  virtual void Close() = 0;
+};
 
 struct Gateway::Impl {
   GatewayOptions options;
   Bridge bridge;
   StaticFiles files;
   net::io_context ioc;
+  std::optional<net::ssl::context> tls;  // set: https and wss only
   std::optional<net::executor_work_guard<net::io_context::executor_type>> work;
   tcp::acceptor acceptor{ioc};
   std::vector<std::thread> threads;
@@ -44,7 +54,7 @@ struct Gateway::Impl {
   std::atomic<bool> stopping{false};
 
   std::mutex sessions_mutex;
-  std::vector<std::weak_ptr<WsSession>> sessions;
+  std::vector<std::weak_ptr<Session>> sessions;
 
   Impl(GatewayOptions o, std::shared_ptr<grpc::Channel> channel)
       : options(std::move(o)), bridge(std::move(channel)), files(options.web_root) {}
@@ -53,10 +63,15 @@ struct Gateway::Impl {
 };
 
 // One WebSocket connection: its calls and its single outgoing queue (one write in flight).
-class WsSession : public CallSink, public std::enable_shared_from_this<WsSession> {
+// Stream: beast::tcp_stream (ws) or TlsStream (wss).
+template <class Stream>
+class WsSession : public CallSink,
+                  public Session,
+                  public std::enable_shared_from_this<WsSession<Stream>> {
  public:
-  WsSession(Gateway::Impl& gw, beast::tcp_stream&& stream) : gw_(gw), ws_(std::move(stream)) {}
+  WsSession(Gateway::Impl& gw, Stream&& stream) : gw_(gw), ws_(std::move(stream)) {}
   ~WsSession() override { gw_.connections.fetch_sub(1); }
+  using std::enable_shared_from_this<WsSession<Stream>>::shared_from_this;
 
   void Run(http::request<http::string_body> request) {
     gw_.connections.fetch_add(1);
@@ -78,7 +93,7 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
     ws_.async_accept(request, beast::bind_front_handler(&WsSession::OnAccept, shared_from_this()));
   }
 
-  void Close() {
+  void Close() override {
     net::post(ws_.get_executor(), [self = shared_from_this()] {
       if (self->closed_) return;
       beast::error_code ec;
@@ -233,7 +248,7 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
   }
 
   Gateway::Impl& gw_;
-  websocket::stream<beast::tcp_stream> ws_;
+  websocket::stream<Stream> ws_;
   beast::flat_buffer in_;
   std::deque<Outgoing> out_;
   std::map<uint32_t, std::shared_ptr<Call>> calls_;
@@ -241,14 +256,31 @@ class WsSession : public CallSink, public std::enable_shared_from_this<WsSession
   std::string authorization_;  // "Bearer TOKEN" once the page sent {"auth": TOKEN}
 };
 
-// One HTTP connection: static files, or the upgrade to the WebSocket at /rpc.
-class HttpSession : public std::enable_shared_from_this<HttpSession> {
+// One HTTP connection: static files, or the upgrade to the WebSocket at /rpc. Stream:
+// beast::tcp_stream (http) or TlsStream (https: the handshake first).
+template <class Stream>
+class HttpSession : public std::enable_shared_from_this<HttpSession<Stream>> {
+  static constexpr bool kTls = std::is_same_v<Stream, TlsStream>;
+
  public:
-  HttpSession(Gateway::Impl& gw, tcp::socket&& socket) : gw_(gw), stream_(std::move(socket)) {}
+  HttpSession(Gateway::Impl& gw, tcp::socket&& socket) requires(!kTls)
+      : gw_(gw), stream_(std::move(socket)) {}
+  HttpSession(Gateway::Impl& gw, tcp::socket&& socket, net::ssl::context& tls) requires(kTls)
+      : gw_(gw), stream_(std::move(socket), tls) {}
+  using std::enable_shared_from_this<HttpSession<Stream>>::shared_from_this;
 
   void Run() {
-    net::dispatch(stream_.get_executor(),
-                  beast::bind_front_handler(&HttpSession::DoRead, shared_from_this()));
+    net::dispatch(stream_.get_executor(), [self = shared_from_this()] {
+      if constexpr (kTls) {
+        beast::get_lowest_layer(self->stream_).expires_after(std::chrono::seconds(30));
+        self->stream_.async_handshake(net::ssl::stream_base::server, [self](beast::error_code ec) {
+          if (ec) return;  // not TLS, or a certificate refused
+          self->DoRead();
+        });
+      } else {
+        self->DoRead();
+      }
+    });
   }
 
  private:
@@ -256,7 +288,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     parser_.emplace();
     parser_->header_limit(16 * 1024);
     parser_->body_limit(64 * 1024);
-    stream_.expires_after(std::chrono::seconds(30));
+    beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(30));
     http::async_read(stream_, buffer_, *parser_,
                      beast::bind_front_handler(&HttpSession::OnRead, shared_from_this()));
   }
@@ -306,8 +338,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       res->prepare_payload();
       return Send(std::move(res));
     }
-    stream_.expires_never();
-    auto ws = std::make_shared<WsSession>(gw_, std::move(stream_));
+    beast::get_lowest_layer(stream_).expires_never();
+    auto ws = std::make_shared<WsSession<Stream>>(gw_, std::move(stream_));
     {
       std::lock_guard<std::mutex> lock(gw_.sessions_mutex);
       auto& v = gw_.sessions;
@@ -339,12 +371,16 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   }
 
   void Close() {
-    beast::error_code ec;
-    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+    if constexpr (kTls) {
+      stream_.async_shutdown([self = shared_from_this()](beast::error_code) {});
+    } else {
+      beast::error_code ec;
+      stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+    }
   }
 
   Gateway::Impl& gw_;
-  beast::tcp_stream stream_;
+  Stream stream_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
 };
@@ -352,7 +388,12 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 void Gateway::Impl::Accept() {
   acceptor.async_accept(net::make_strand(ioc), [this](beast::error_code ec, tcp::socket socket) {
     if (stopping.load() || !acceptor.is_open()) return;
-    if (!ec) std::make_shared<HttpSession>(*this, std::move(socket))->Run();
+    if (!ec) {
+      if (tls)
+        std::make_shared<HttpSession<TlsStream>>(*this, std::move(socket), *tls)->Run();
+      else
+        std::make_shared<HttpSession<beast::tcp_stream>>(*this, std::move(socket))->Run();
+    }
     Accept();
   });
 }
@@ -391,6 +432,24 @@ grpc::Status Gateway::Start() {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                         "--http host \"" + host + "\" does not resolve: " + ec.message());
   tcp::endpoint endpoint = results.begin()->endpoint();
+  if (!impl_->options.tls_cert_pem.empty()) {
+    const GatewayOptions& o = impl_->options;
+    auto& tls = impl_->tls.emplace(net::ssl::context::tls_server);
+    tls.set_options(net::ssl::context::default_workarounds | net::ssl::context::no_sslv2 |
+                    net::ssl::context::no_sslv3 | net::ssl::context::no_tlsv1 |
+                    net::ssl::context::no_tlsv1_1 | net::ssl::context::single_dh_use);
+    tls.use_certificate_chain(net::buffer(o.tls_cert_pem), ec);
+    if (!ec) tls.use_private_key(net::buffer(o.tls_key_pem), net::ssl::context::pem, ec);
+    if (!ec && !o.tls_client_ca_pem.empty()) {
+      tls.add_certificate_authority(net::buffer(o.tls_client_ca_pem), ec);
+      tls.set_verify_mode(net::ssl::verify_peer | net::ssl::verify_fail_if_no_peer_cert);
+    }
+    if (ec)
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          "the studio's TLS certificate or key does not load: " + ec.message() +
+                              " (--tls-cert wants a PEM certificate chain, --tls-key its PEM "
+                              "private key)");
+  }
   auto& acc = impl_->acceptor;
   acc.open(endpoint.protocol(), ec);
   if (!ec) acc.set_option(net::socket_base::reuse_address(true), ec);

@@ -1,6 +1,7 @@
 // The studio's gateway: the daemon's web server on Boost.Beast, on threads of its own (never the
 // loop's). It serves the browser studio's files (clients/web) and a WebSocket at /rpc that
-// carries the rheo.v1 API through the generic bridge (bridge.h, envelope.h).
+// carries the rheo.v1 API through the generic bridge (bridge.h, envelope.h); over TLS (https,
+// wss) when given a certificate.
 #pragma once
 
 #include <grpcpp/grpcpp.h>
@@ -19,6 +20,9 @@ struct GatewayOptions {
   int max_connections = 256;
   size_t max_message_bytes = 64u << 20;  // a sketch with its photo
   int max_calls_per_connection = 64;
+  // https and wss when a certificate is given (PEM text); with a client CA, browsers must present
+  // a certificate it signed (mutual TLS).
+  std::string tls_cert_pem, tls_key_pem, tls_client_ca_pem;
 };
 
 struct GatewayStats {
