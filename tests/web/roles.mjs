@@ -28,6 +28,7 @@ run('web.roles', async ({ daemon, browser }) => {
   const reason = await anon.locator('#sign-in-reason').textContent();
   assert(/needs an access token/.test(reason), `the reason in words: ${reason}`);
   assert((await anon.getByRole('button', { name: 'Create', exact: true }).count()) === 0, 'no Create');
+  assert((await anon.locator('#mode').textContent()) === 'sign in', 'the mode says sign in');
   // Signing in with the viewer token (the form reloads the page with it).
   await anon.getByLabel('Access token').fill(created.token);
   await anon.getByRole('button', { name: 'Use this token' }).click();

@@ -207,8 +207,8 @@ $('#who').textContent = identity.error ? 'not signed in' : `${identity.tokenName
 const template = $('#studio-panels');
 if (viewOnly) {
   template.remove();
-  $('#mode').textContent = 'viewer';
-  document.title = 'Rheo viewer';
+  $('#mode').textContent = identity.error ? 'sign in' : 'viewer';
+  document.title = identity.error ? 'Rheo: sign in' : 'Rheo viewer';
 } else {
   const panels = template.content.cloneNode(true);
   template.remove();
