@@ -1,6 +1,11 @@
-// `rheo simulate`: runs a rheological object offline and writes one JSON line per frame.
+// `rheo simulate`: runs a rheological object offline and writes one JSON line per frame, with the
+// shape change free of rigid motion (compression along gravity, RMS deformation); reports the
+// peak compression and, after the load is taken away, the residual (plastic) deformation; can
+// write the deformed object as a VTU series with a .pvd index (ParaView opens it).
 #include <Eigen/Geometry>
 #include <chrono>
+#include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -11,6 +16,7 @@
 
 #include "commands.h"
 #include "common/tet_mesh_io.h"
+#include "sim/deformation.h"
 #include "sim/sim.h"
 
 // common/tet_mesh_io.cc calls Vec3 differences' cross() without including <Eigen/Geometry>, so
@@ -36,6 +42,8 @@ struct SimulateOptions {
   double drop_height = 0.0;
   double frame_interval = 0.01;
   std::string jsonl_path;
+  double relax = 1.0;      // [s] simulated after the run without gravity, for the residual
+  std::string vtu_series;  // directory for frame_NNNNNN.vtu and series.pvd; "" none
 };
 
 int RunSimulate(const SimulateOptions& o) {
@@ -112,8 +120,46 @@ int RunSimulate(const SimulateOptions& o) {
     }
     out = &file;
   }
+  if (!(o.relax >= 0.0)) {
+    std::cerr << "rheo simulate: --relax must be non-negative\n";
+    return 1;
+  }
+  // The VTU series: one file per frame and the index ParaView reads.
+  std::ofstream pvd;
+  int frame_file = 0;
+  if (!o.vtu_series.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(o.vtu_series, ec);
+    pvd.open(std::filesystem::path(o.vtu_series) / "series.pvd");
+    if (ec || !pvd) {
+      std::cerr << "rheo simulate: cannot write the VTU series in " << o.vtu_series << "\n";
+      return 1;
+    }
+    pvd << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n"
+           "  <Collection>\n";
+  }
+  TetMesh deformed = *mesh;
+  auto write_vtu = [&](double time) {
+    if (o.vtu_series.empty()) return true;
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%06d.vtu", frame_file++);
+    const auto x = s.positions();
+    deformed.positions.assign(x.begin(), x.end());
+    std::ofstream f(std::filesystem::path(o.vtu_series) / name);
+    f << WriteVtu(deformed);
+    if (!f) {
+      std::cerr << "rheo simulate: cannot write " << o.vtu_series << "/" << name << "\n";
+      return false;
+    }
+    pvd << "    <DataSet timestep=\"" << time << "\" part=\"0\" file=\"" << name << "\"/>\n";
+    return true;
+  };
+  const std::vector<Vec3> rest = mesh->positions;
+  const Vec3 up(0.0, 1.0, 0.0);  // gravity is along -y
+  double peak_compression = 0.0, peak_time = 0.0;
   const int64_t steps = static_cast<int64_t>(std::llround(o.time / o.dt));
   const int64_t per_frame = std::max<int64_t>(1, std::llround(o.frame_interval / o.dt));
+  bool ok = true;
   double wall_sum = 0.0;
   int64_t frame_steps = 0, frame_substeps = 0, restores = 0;
   auto emit = [&](int64_t step) {
@@ -134,7 +180,11 @@ int RunSimulate(const SimulateOptions& o) {
     j["restores"] = restores;
     j["sleeping"] = s.sleeping();
     j["floor_force_y"] = d.floor_force.y();
+    const sim::ShapeChange shape = sim::MeasureShapeChange(rest, s.positions(), up);
+    j["compression"] = shape.compression;
+    j["deformation_rms"] = shape.rms;
     *out << j.dump() << "\n";
+    if (!write_vtu(d.time)) ok = false;
     wall_sum = 0.0;
     frame_steps = frame_substeps = restores = 0;
   };
@@ -146,11 +196,62 @@ int RunSimulate(const SimulateOptions& o) {
     ++frame_steps;
     frame_substeps += r.substeps;
     restores += r.restored ? 1 : 0;
+    // The peak is looked for at every step (outside the timed step), not only at frames.
+    if (const double c = sim::MeasureShapeChange(rest, s.positions(), up).compression;
+        c > peak_compression) {
+      peak_compression = c;
+      peak_time = s.time();
+    }
     if (k % per_frame == 0 || k == steps) emit(k);
+    if (!ok) return 1;
   }
+  const sim::ShapeChange loaded = sim::MeasureShapeChange(rest, s.positions(), up);
   std::cerr << "rheo simulate: " << steps << " steps, " << s.events().restores << " restores, "
             << s.events().capped_ticks << " capped ticks, integrator "
             << sim::IntegratorName(s.integrator()) << "\n";
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "rheo simulate: peak compression %.3f %% at %.3f s; at the end %.3f %% "
+                "(RMS deformation %.3f mm)\n",
+                100.0 * peak_compression, peak_time, 100.0 * loaded.compression, 1e3 * loaded.rms);
+  std::cerr << line;
+  if (o.relax > 0.0) {
+    // Unloaded: no gravity (the tool never touched it offline), so the elastic part recovers
+    // and what stays is the plastic flow of the dampers (eq. 3).
+    sim::Parameters unloaded = s.parameters();
+    unloaded.gravity = 0.0;
+    if (Status st = s.SetParameters(unloaded); !st.ok()) {
+      std::cerr << "rheo simulate: " << st.error().message << "\n";
+      return 1;
+    }
+    const int64_t relax_steps = static_cast<int64_t>(std::llround(o.relax / o.dt));
+    for (int64_t k = 1; k <= relax_steps; ++k) s.Step(o.dt);
+    const sim::ShapeChange residual = sim::MeasureShapeChange(rest, s.positions(), up);
+    std::snprintf(line, sizeof line,
+                  "rheo simulate: residual (plastic) deformation after %.2f s unloaded: "
+                  "compression %.3f %%, RMS %.3f mm, largest %.3f mm\n",
+                  o.relax, 100.0 * residual.compression, 1e3 * residual.rms, 1e3 * residual.max);
+    std::cerr << line;
+    nlohmann::json summary;
+    summary["peak_compression"] = peak_compression;
+    summary["peak_compression_time"] = peak_time;
+    summary["final_compression"] = loaded.compression;
+    summary["final_deformation_rms"] = loaded.rms;
+    summary["residual_compression"] = residual.compression;
+    summary["residual_deformation_rms"] = residual.rms;
+    summary["residual_deformation_max"] = residual.max;
+    summary["relax_s"] = o.relax;
+    *out << nlohmann::json{{"summary", summary}}.dump() << "\n";
+  }
+  if (pvd.is_open()) {
+    pvd << "  </Collection>\n</VTKFile>\n";
+    if (!pvd) {
+      std::cerr << "rheo simulate: cannot finish " << o.vtu_series << "/series.pvd\n";
+      return 1;
+    }
+    std::cerr << "rheo simulate: wrote " << frame_file << " frames to " << o.vtu_series
+              << "/series.pvd\n";
+  }
   return 0;
 }
 
@@ -168,6 +269,12 @@ void AddSimulateCommand(CLI::App& app) {
   cmd->add_option("--drop-height", opts->drop_height, "lowest point above the floor at start [m]");
   cmd->add_option("--frame", opts->frame_interval, "time between reported frames [s]");
   cmd->add_option("--jsonl", opts->jsonl_path, "output file (default stdout)");
+  cmd->add_option("--relax", opts->relax,
+                  "then this long without gravity, for the residual (plastic) deformation [s]; 0: "
+                  "skip (the last line is then a frame, not the summary)");
+  cmd->add_option("--vtu-series", opts->vtu_series,
+                  "write each frame's deformed object to DIR/frame_NNNNNN.vtu and the index "
+                  "DIR/series.pvd (ParaView)");
   cmd->callback([opts]() { g_exit_code = RunSimulate(*opts); });
 }
 
