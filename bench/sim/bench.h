@@ -72,15 +72,24 @@ RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_en
 double RmsError(const std::vector<Vec3>& a, const std::vector<Vec3>& b, double size);
 
 // The modes (main.cc maps the command line onto them); each returns the exit status.
-int Speed(int max_tets);                // speed.cc
-int Kernels(int target);                // kernels.cc
-int Preconditioners(int max_tets);      // precond.cc
-int Precision(const std::string& svg);  // precision.cc
-int ParameterChange();                  // params.cc
-int CgSweep();                          // cg.cc
+int Speed(int max_tets);                                // speed.cc
+int Kernels(int target);                                // kernels.cc
+int Preconditioners(int max_tets);                      // precond.cc
+int Precision(const std::string& svg);                  // precision.cc
+int ParameterChange();                                  // params.cc
+int CgSweep();                                          // cg.cc
+int Sketched(const std::string& sample, int max_tets);  // sketched.cc
 #ifdef RHEO_HAVE_BULLET
 int Bullet();       // bullet.cc
 int BulletCheck();  // bullet.cc
+// btSoftBody on `sc`'s tetrahedra (4 position iterations, link stiffness kLST; `bending` > 0 adds
+// links between nodes that many links apart, as generateBendingConstraints), its step times.
+struct BulletRun {
+  std::vector<Vec3> x;
+  double cpu = 0.0;
+  std::vector<double> tick_us;
+};
+BulletRun RunBullet(const Scene& sc, double dt, double t_end, double stiffness, int bending = 2);
 #endif
 
 }  // namespace sim_bench

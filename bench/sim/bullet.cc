@@ -1,4 +1,7 @@
 // sim_bench bullet: btSoftBody on the same tets and dt, vs the same reference (and bullet-check).
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -16,16 +19,9 @@
 #include <btBulletDynamicsCommon.h>
 
 namespace sim_bench {
-namespace {
 
 // btSoftBody from the same tetrahedra (TetGen text, as Bullet reads it), same dt, same floor.
-struct BulletRun {
-  std::vector<Vec3> x;
-  double cpu = 0.0;
-  std::vector<double> tick_us;
-};
-
-BulletRun RunBullet(const Scene& sc, double dt, double t_end, double stiffness) {
+BulletRun RunBullet(const Scene& sc, double dt, double t_end, double stiffness, int bending) {
   std::ostringstream node, ele;
   node << sc.mesh.positions.size() << " 3 0 0\n";
   for (size_t i = 0; i < sc.mesh.positions.size(); ++i) {
@@ -61,8 +57,17 @@ BulletRun RunBullet(const Scene& sc, double dt, double t_end, double stiffness) 
   ground.setFriction(sc.params.friction);
   world.addRigidBody(&ground);
   const std::string ele_s = ele.str(), node_s = node.str();
+  // CreateFromTetGenData prints its counts on stdout; the tables go there, so it is muted.
+  std::fflush(stdout);
+  const int saved_stdout = ::dup(1);
+  const int null_fd = ::open("/dev/null", O_WRONLY);
+  if (null_fd >= 0) ::dup2(null_fd, 1);
   btSoftBody* sb = btSoftBodyHelpers::CreateFromTetGenData(info, ele_s.c_str(), nullptr,
                                                            node_s.c_str(), false, true, true);
+  std::fflush(stdout);
+  if (saved_stdout >= 0) ::dup2(saved_stdout, 1);
+  if (null_fd >= 0) ::close(null_fd);
+  if (saved_stdout >= 0) ::close(saved_stdout);
   double mass = 0.0;
   for (const auto& t : sc.mesh.tets) {
     const Vec3& p0 = sc.mesh.positions[t[0]];
@@ -77,7 +82,7 @@ BulletRun RunBullet(const Scene& sc, double dt, double t_end, double stiffness) 
   sb->m_cfg.collisions = btSoftBody::fCollision::SDF_RS;
   sb->getCollisionShape()->setMargin(0.002);  // default 0.25 m is larger than the object
   sb->setTotalMass(mass, false);              // no faces: by node, not by area
-  sb->generateBendingConstraints(2, sb->m_materials[0]);
+  if (bending > 0) sb->generateBendingConstraints(bending, sb->m_materials[0]);
   world.addSoftBody(sb);
   std::vector<int> top;
   double y_max = -1e30;
@@ -109,8 +114,6 @@ BulletRun RunBullet(const Scene& sc, double dt, double t_end, double stiffness) 
   delete sb;
   return r;
 }
-
-}  // namespace
 
 int Bullet() {
   const double t_end = 0.5, dt = 1e-3;
