@@ -100,8 +100,8 @@ int Sketched(const std::string& sample, int max_tets) {
     }
     Parameters p = FindPreset("organ")->params;
     p.sleep_time = 0.0;  // measured while it moves, never asleep
-    for (const Scene& sc : {Scene{"drop", solid->mesh, p, 0.02, 0.0},
-                            Scene{"press", solid->mesh, p, 0.0, 3.0}}) {
+    for (const Scene& sc :
+         {Scene{"drop", solid->mesh, p, 0.02, 0.0}, Scene{"press", solid->mesh, p, 0.0, 3.0}}) {
       const Tick t = RunRheo(sc, ticks);
       const double med = Median(t.us);
       const size_t tets = sc.mesh.tets.size();
@@ -110,12 +110,12 @@ int Sketched(const std::string& sample, int max_tets) {
       bullet = Median(RunBullet(sc, 1e-3, ticks * 1e-3, 1.0, 0).tick_us);
       bullet_bend = Median(RunBullet(sc, 1e-3, ticks * 1e-3, 1.0, 2).tick_us);
 #endif
-      std::printf("%-6s %7zu %8.2f %9.1f %9.1f %9.1f %9.1f %8.2f %8.0f %8lld %10.1f %7.2f %10.1f %7.2f\n",
-                  sc.name, tets, opt.resolution * 1e3, med, Percentile(t.us, 0.99),
-                  *std::max_element(t.us.begin(), t.us.end()), med / (tets / 1000.0),
-                  t.substeps > 0 ? double(t.iterations) / t.substeps : 0.0, t.max_iterations,
-                  static_cast<long long>(t.restores), bullet, bullet / med, bullet_bend,
-                  bullet_bend / med);
+      std::printf(
+          "%-6s %7zu %8.2f %9.1f %9.1f %9.1f %9.1f %8.2f %8.0f %8lld %10.1f %7.2f %10.1f %7.2f\n",
+          sc.name, tets, opt.resolution * 1e3, med, Percentile(t.us, 0.99),
+          *std::max_element(t.us.begin(), t.us.end()), med / (tets / 1000.0),
+          t.substeps > 0 ? double(t.iterations) / t.substeps : 0.0, t.max_iterations,
+          static_cast<long long>(t.restores), bullet, bullet / med, bullet_bend, bullet_bend / med);
       std::fflush(stdout);
     }
   }

@@ -62,6 +62,18 @@ int ShowStatus(const Global& g, bool json) {
         l.unstable_objects());
   std::printf("scene objects %u, stored objects %u, jobs %u, frame clients %u\n",
               st.scene_objects(), st.stored_objects(), st.running_jobs(), st.frame_clients());
+  if (st.has_limits()) {
+    const auto& lim = st.limits();
+    std::printf(
+        "limits per token: %g calls/s to each expensive method (burst %g), %u streams, %u mesh "
+        "jobs, idle streams end after %g s (0 = none)\n"
+        "  hit: %llu calls, %llu streams, %llu jobs refused; %llu idle streams ended; %u streams "
+        "open\n",
+        lim.calls_per_s(), lim.burst(), lim.streams(), lim.jobs(), lim.stream_idle_s(),
+        (unsigned long long)lim.refused_calls(), (unsigned long long)lim.refused_streams(),
+        (unsigned long long)lim.refused_jobs(), (unsigned long long)lim.idle_streams_ended(),
+        lim.open_streams());
+  }
   return 0;
 }
 
