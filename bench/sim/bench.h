@@ -12,6 +12,7 @@
 
 namespace sim_bench {
 
+using rheo::Result;
 using rheo::TetMesh;
 using rheo::Vec3;
 using namespace rheo::sim;
@@ -72,13 +73,20 @@ RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_en
 double RmsError(const std::vector<Vec3>& a, const std::vector<Vec3>& b, double size);
 
 // The modes (main.cc maps the command line onto them); each returns the exit status.
-int Speed(int max_tets);                                // speed.cc
-int Kernels(int target);                                // kernels.cc
-int Preconditioners(int max_tets);                      // precond.cc
-int Precision(const std::string& svg);                  // precision.cc
-int ParameterChange();                                  // params.cc
-int CgSweep();                                          // cg.cc
-int Sketched(const std::string& sample, int max_tets);  // sketched.cc
+int Speed(int max_tets);                // speed.cc
+int Kernels(int target);                // kernels.cc
+int Preconditioners(int max_tets);      // precond.cc
+int Precision(const std::string& svg);  // precision.cc
+int ParameterChange();                  // params.cc
+int CgSweep();                          // cg.cc
+// A project sample (samples/NAME.json) meshed at about each target tet count (sketched.cc).
+struct SampleMeshes {
+  std::vector<TetMesh> meshes;
+  std::vector<double> resolution;  // the edge length asked of the mesher [m]
+};
+Result<SampleMeshes> MeshSample(const std::string& sample, std::span<const int> targets);
+int Sketched(const std::string& sample, int max_tets);   // sketched.cc
+int MultiRate(const std::string& sample, int max_tets);  // multirate.cc
 #ifdef RHEO_HAVE_BULLET
 int Bullet();       // bullet.cc
 int BulletCheck();  // bullet.cc

@@ -55,21 +55,43 @@ Tick RunRheo(const Scene& sc, int ticks) {
 
 }  // namespace
 
-int Sketched(const std::string& sample, int max_tets) {
+Result<SampleMeshes> MeshSample(const std::string& sample, std::span<const int> targets) {
   const std::string path = std::string(RHEO_SAMPLES_DIR) + "/" + sample + ".json";
   std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    std::fprintf(stderr, "sim_bench sketched: cannot read %s\n", path.c_str());
-    return 1;
-  }
+  if (!in) return rheo::NotFound("cannot read " + path);
   std::stringstream ss;
   ss << in.rdbuf();
   const std::string bytes = ss.str();
   auto contour = rheo::sketch::ContourFromSketchBytes(
       std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
       rheo::sketch::ContourOptions{});
-  if (!contour.ok()) {
-    std::fprintf(stderr, "sim_bench sketched: %s\n", contour.error().message.c_str());
+  if (!contour.ok()) return contour.error();
+  SampleMeshes out;
+  const double r0 = 0.008, n0 = 2673.0;  // the bean at 8 mm (rheo mesh); a first guess
+  for (int target : targets) {
+    // The edge length for about `target` tets: a first guess from the bean at 8 mm, then once
+    // more from the count it gave.
+    rheo::mesh::MeshOptions opt;
+    opt.resolution = r0 * std::cbrt(n0 / target);
+    auto solid = rheo::mesh::BuildSolid(contour->contour, opt);
+    if (solid.ok()) {
+      opt.resolution *= std::cbrt(double(solid->mesh.tets.size()) / target);
+      solid = rheo::mesh::BuildSolid(contour->contour, opt);
+    }
+    if (!solid.ok()) return solid.error();
+    out.meshes.push_back(std::move(solid->mesh));
+    out.resolution.push_back(opt.resolution);
+  }
+  return out;
+}
+
+int Sketched(const std::string& sample, int max_tets) {
+  std::vector<int> targets;
+  for (int target : {5000, 20000, 100000})
+    if (target <= max_tets) targets.push_back(target);
+  auto meshes = MeshSample(sample, targets);
+  if (!meshes.ok()) {
+    std::fprintf(stderr, "sim_bench sketched: %s\n", meshes.error().message.c_str());
     return 1;
   }
   const int ticks = 400;
@@ -82,26 +104,11 @@ int Sketched(const std::string& sample, int max_tets) {
   std::printf("%-6s %7s %8s %9s %9s %9s %9s %8s %8s %8s %10s %7s %10s %7s\n", "scene", "tets",
               "res_mm", "med_us", "p99_us", "max_us", "us/1ktet", "cg_mean", "cg_max", "restores",
               "bullet_us", "ratio", "bullet2_us", "ratio2");
-  const double r0 = 0.008, n0 = 2673.0;  // the bean at 8 mm (rheo mesh); a first guess
-  for (int target : {5000, 20000, 100000}) {
-    if (target > max_tets) break;
-    // The edge length for about `target` tets: a first guess from the bean at 8 mm, then once
-    // more from the count it gave.
-    rheo::mesh::MeshOptions opt;
-    opt.resolution = r0 * std::cbrt(n0 / target);
-    auto solid = rheo::mesh::BuildSolid(contour->contour, opt);
-    if (solid.ok()) {
-      opt.resolution *= std::cbrt(double(solid->mesh.tets.size()) / target);
-      solid = rheo::mesh::BuildSolid(contour->contour, opt);
-    }
-    if (!solid.ok()) {
-      std::fprintf(stderr, "sim_bench sketched: %s\n", solid.error().message.c_str());
-      return 1;
-    }
+  for (size_t mi = 0; mi < meshes->meshes.size(); ++mi) {
+    const TetMesh& mesh = meshes->meshes[mi];
     Parameters p = FindPreset("organ")->params;
     p.sleep_time = 0.0;  // measured while it moves, never asleep
-    for (const Scene& sc :
-         {Scene{"drop", solid->mesh, p, 0.02, 0.0}, Scene{"press", solid->mesh, p, 0.0, 3.0}}) {
+    for (const Scene& sc : {Scene{"drop", mesh, p, 0.02, 0.0}, Scene{"press", mesh, p, 0.0, 3.0}}) {
       const Tick t = RunRheo(sc, ticks);
       const double med = Median(t.us);
       const size_t tets = sc.mesh.tets.size();
@@ -112,7 +119,7 @@ int Sketched(const std::string& sample, int max_tets) {
 #endif
       std::printf(
           "%-6s %7zu %8.2f %9.1f %9.1f %9.1f %9.1f %8.2f %8.0f %8lld %10.1f %7.2f %10.1f %7.2f\n",
-          sc.name, tets, opt.resolution * 1e3, med, Percentile(t.us, 0.99),
+          sc.name, tets, meshes->resolution[mi] * 1e3, med, Percentile(t.us, 0.99),
           *std::max_element(t.us.begin(), t.us.end()), med / (tets / 1000.0),
           t.substeps > 0 ? double(t.iterations) / t.substeps : 0.0, t.max_iterations,
           static_cast<long long>(t.restores), bullet, bullet / med, bullet_bend, bullet_bend / med);

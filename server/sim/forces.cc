@@ -200,7 +200,7 @@ void GlobalVolumeForces(const Model& m, const Parameters& p, State& s, double h,
     s.vol_grad[fc[1]] += g;
     s.vol_grad[fc[2]] += g;
   }
-  vol /= 6.0;
+  vol = vol / 6.0 + s.volume_offset;
   double vol_dot = 0.0;
   for (int32_t i = 0; i < n; ++i) vol_dot += s.vol_grad[i].dot(s.v[i]);
   // Eq. 4 with C taken as a dissipating viscosity (the paper prints +C dV/dt).

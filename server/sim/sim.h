@@ -78,6 +78,8 @@ struct PreparedParameters {
   std::vector<uint8_t> tet_implicit;  // per tet, 1 in the linear system (kSplit)
 };
 
+class Patch;
+
 class SimObject {
  public:
   /// Builds model and state from a mesh (allocates). Fails on a bad mesh or parameters.
@@ -152,6 +154,7 @@ class SimObject {
   Diagnostics ComputeDiagnostics() const;
 
  private:
+  friend class Patch;  // copies node and edge state in and out (multirate.h)
   SimObject(Model model, const Parameters& params, Integrator integrator);
   void UpdateDerived();
   // Node masses from unit_mass_ at `density` (no allocation).

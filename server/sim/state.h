@@ -48,6 +48,9 @@ struct State {
   std::vector<Vec3> f_tet_implicit;   // the implicit tets' share of f (n) [N]
   double global_k = 0.0;  // h^2 K of the rank-one volume term, K [N/m^5] [N s^2/m^5 = kg/m^4]
   double global_c = 0.0;  // h C of the rank-one volume term, C [N s/m^5] [N s^2/m^5 = kg/m^4]
+  // Added to the volume the faces enclose (eq. 4): a patch's faces are part of a whole's surface,
+  // and this is the rest of the whole's volume (sim/multirate.h). 0 for a whole object [m^3].
+  double volume_offset = 0.0;
   std::vector<Vec3> cg_r, cg_z, cg_p, cg_q;  // CG vectors (n)
   std::vector<Vec3> dv;       // the substep's velocity change, CG's unknown (n) [m/s]
   std::vector<Vec3> dv_prev;  // dv one substep back (n) [m/s]

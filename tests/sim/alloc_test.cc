@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "alloc_counter.h"
+#include "sim/multirate.h"
 #include "sim/primitives.h"
 #include "sim/sim.h"
 
@@ -74,6 +75,34 @@ TEST(NoAllocation, ValidSetParameterDoesNotAllocate) {
   const long count = guard.count();
   EXPECT_TRUE(ok);
   EXPECT_EQ(count, 0);
+}
+
+// The multi-rate scheme's per-tick half (tool loads, the patch's step) and a sync that keeps its
+// patch (Follow, the window swap, the whole's step) never allocate.
+TEST(NoAllocation, MultiRateTicksAndSyncsWithoutARebuild) {
+  auto mesh = MakeBoxTetMesh(4, 3, 4, Vec3(0.06, 0.03, 0.06));
+  ASSERT_TRUE(mesh.ok());
+  auto obj = SimObject::Create(*mesh, "organ");
+  ASSERT_TRUE(obj.ok());
+  (**obj).SetIntegrator(Integrator::kImplicitEuler);
+  auto mr = MultiRate::Create(std::move(*obj), 5, PatchOptions{0.02});
+  ASSERT_TRUE(mr.ok()) << mr.error().message;
+  const Vec3 focus(0.03, 0.03, 0.03);
+  NodeLoad loads[3];
+  auto tick = [&](int k) {
+    int32_t n = 0;
+    for (int32_t i = 0; i < mr->whole().model().num_nodes && n < 3; ++i)
+      if (mr->patch() && mr->patch()->IsInner(i)) loads[n++] = {i, Vec3(0, -0.1 * (k % 3), 0)};
+    mr->Tick(std::span<const NodeLoad>(loads, n), focus, 1e-3);
+  };
+  tick(0);  // builds the patch (allocates)
+  ASSERT_NE(mr->patch(), nullptr);
+  AllocationCounter guard;
+  for (int k = 1; k < 40; ++k) tick(k);
+  const long count = guard.count();
+  EXPECT_EQ(count, 0);
+  EXPECT_EQ(mr->counts().rebuilds, 1);
+  EXPECT_EQ(mr->counts().syncs, 8);
 }
 
 }  // namespace

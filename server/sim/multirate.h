@@ -1,0 +1,179 @@
+// Multi-rate stepping for an object whose full step does not fit the tick: the region near the
+// tool steps every tick, the whole object at its own, longer period.
+//
+//   Patch: the whole's tetrahedra that touch a node within `radius` of a point, as a SimObject of
+//   its own. Its inner nodes (those within the radius) carry every element they belong to, so
+//   they feel exactly the forces they feel in the whole; the other nodes of those tetrahedra are
+//   its boundary, held on the whole's trajectory (positions and velocities taken at each sync,
+//   moving on linearly until the next). The global volume condition (eq. 4) stays implicit in the
+//   patch, on the whole's volume: what the patch's faces enclose plus the rest taken at each sync.
+//
+//   The coupling (server/sim/README.md, Multi-rate): every tick the tool's contact forces act on
+//   the patch and are summed into a ForceWindow; at each sync the whole takes their average over
+//   the window as its load for its next step, and the patch's boundary takes the whole's new state.
+//   So the hand and the object exchange the same forces (equal and opposite, up to the window's
+//   delay), and the inner nodes follow the whole wherever the tool does not reach.
+//
+// Pure, like the rest of rheo::sim: Build allocates; Follow, the force setters and Step do not.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "common/geometry.h"
+#include "common/status.h"
+#include "sim/sim.h"
+
+namespace rheo::sim {
+
+struct PatchOptions {
+  double radius = 0.015;  ///< inner nodes lie within this distance of the centre [m], (0, 1]
+  double tick = 1e-3;     ///< the patch's tick [s], (0, 0.1]: its BDF2 history is made for it
+  /// Longest substep of the whole's step [s], (0, 0.1]. The implicit integrator is stable at any
+  /// step, but its nonlinear elements are not accurate beyond a few ms: on an organ-preset box
+  /// under a tool load, one 5 ms step swings the loaded node by +-5 mm where 1 ms steps hold it;
+  /// 2.5 ms substeps stay within 0.4 mm (tests/sim/multirate_test.cc).
+  double whole_substep = 2.5e-3;
+};
+
+class Patch {
+ public:
+  /// The patch of `whole` around `center` at the whole's current state (positions, velocities,
+  /// Voigt ratios and tensions copied). Allocates. INVALID_ARGUMENT for a bad radius or one that
+  /// takes no node. The patch steps with `params` (validated by the whole; null: the whole's).
+  static Result<Patch> Build(const SimObject& whole, const Vec3& center,
+                             const PatchOptions& options, const Parameters* params = nullptr);
+
+  /// The whole has reached a new state: boundary nodes take its positions and velocities, and the
+  /// whole's volume outside the patch's faces is taken again. A pass over the whole's faces; does
+  /// not allocate.
+  void Follow(const SimObject& whole);
+
+  /// Tool force on a node of the whole [N], held until ClearToolForces. Returns false (and does
+  /// nothing) when the node is not an inner node of the patch.
+  bool SetToolForce(int32_t whole_node, const Vec3& force);
+  void ClearToolForces();
+
+  /// One tick of the patch.
+  StepResult Step(double dt) { return object_->Step(dt); }
+
+  /// Writes the inner nodes' positions over `whole_positions` (the whole's node array).
+  void Overlay(std::span<Vec3> whole_positions) const;
+
+  bool IsInner(int32_t whole_node) const {
+    return whole_node >= 0 && whole_node < static_cast<int32_t>(local_.size()) &&
+           local_[whole_node] >= 0 && local_[whole_node] < inner_;
+  }
+  const Vec3& center() const { return center_; }
+  double radius() const { return radius_; }
+  int32_t inner_nodes() const { return inner_; }
+  /// Whole-node ids of the patch's nodes, inner ones first.
+  std::span<const int32_t> nodes() const { return global_; }
+  const SimObject& object() const { return *object_; }
+  SimObject& object() { return *object_; }
+
+ private:
+  Patch() = default;
+
+  std::unique_ptr<SimObject> object_;
+  std::vector<int32_t> global_;  // patch node -> whole node; inner nodes first
+  std::vector<int32_t> local_;   // whole node -> patch node, or -1
+  int32_t inner_ = 0;
+  std::vector<Vec3> tool_;           // tool force per inner node [N]
+  std::vector<int32_t> tool_nodes_;  // inner nodes with a tool force (capacity reserved)
+  Vec3 center_ = Vec3::Zero();
+  double radius_ = 0.0;
+};
+
+/// Sums node forces over a window of ticks in fixed memory (open addressing): Add never
+/// allocates. A window holds `capacity` distinct nodes (a tool touches at most 24 per tick); a
+/// force on a node past that is dropped and counted.
+class ForceWindow {
+ public:
+  explicit ForceWindow(int32_t capacity = 2048);
+  /// Adds force x duration [N s] on `node`; false when the window is full (counted).
+  bool Add(int32_t node, const Vec3& force, double dt);
+  /// Entries so far; their averages over the window's duration are force_sum / duration().
+  struct Entry {
+    int32_t node = -1;
+    Vec3 impulse = Vec3::Zero();  // [N s]
+  };
+  std::span<const Entry> entries() const { return {used_.data(), used_count_}; }
+  double duration() const { return duration_; }
+  void AddDuration(double dt) { duration_ += dt; }
+  /// The window's average force on each node [N] becomes the whole's external force (all other
+  /// external forces cleared): the load of its next step.
+  void ApplyAverage(SimObject& whole) const;
+  void Clear();
+  int64_t overflowed() const { return overflowed_; }  // since the last Clear
+
+ private:
+  std::vector<int32_t> slot_;  // hash slot -> index into used_, or -1
+  std::vector<Entry> used_;
+  size_t used_count_ = 0;
+  double duration_ = 0.0;
+  int64_t overflowed_ = 0;
+};
+
+/// A tool force on one node of the whole [N].
+struct NodeLoad {
+  int32_t node = 0;
+  Vec3 force = Vec3::Zero();
+};
+
+struct MultiRateCounts {
+  int64_t ticks = 0;
+  int64_t syncs = 0;          // whole steps taken
+  int64_t rebuilds = 0;       // patches built (the first included)
+  int64_t outside_loads = 0;  // tool loads on nodes outside the patch (the whole alone felt them)
+  int64_t window_overflow = 0;
+  int64_t patch_restores = 0;
+};
+
+/// The coupling itself: the whole stepped every `period` ticks by `period` x dt with the average
+/// of the tool loads over the window before, the patch every tick. Tick() runs both in sequence
+/// (offline, tests, benchmarks); a caller that runs the whole on its own thread calls Sync() and
+/// FastTick() on the tick's thread and StepWhole() on the other, one whole step in flight.
+class MultiRate {
+ public:
+  /// Takes the whole over. Allocates. INVALID_ARGUMENT for a period outside [1, 1000].
+  static Result<MultiRate> Create(std::unique_ptr<SimObject> whole, int32_t period,
+                                  const PatchOptions& options);
+
+  /// One tick of dt with this tick's loads, the tool near `focus` (the proxy) [m].
+  StepResult Tick(std::span<const NodeLoad> loads, const Vec3& focus, double dt);
+
+  /// The whole has reached its next state: the patch follows it (built again around `focus` when
+  /// the focus has left the inner half of its radius: that allocates), the render positions take
+  /// its state, and the window just closed becomes the load of the whole's next step.
+  void Sync(const Vec3& focus);
+  /// The whole's step over the period (the slow part).
+  StepResult StepWhole(double dt);
+  /// The patch's tick with the tool's loads.
+  StepResult FastTick(std::span<const NodeLoad> loads, double dt);
+
+  /// The surface to render against: the whole at its last sync, the patch's inner nodes over it.
+  std::span<const Vec3> positions() const { return render_; }
+  const SimObject& whole() const { return *whole_; }
+  SimObject& whole() { return *whole_; }
+  const Patch* patch() const { return patch_ ? &*patch_ : nullptr; }
+  int32_t period() const { return period_; }
+  const MultiRateCounts& counts() const { return counts_; }
+
+ private:
+  MultiRate() = default;
+
+  std::unique_ptr<SimObject> whole_;
+  std::optional<Patch> patch_;
+  PatchOptions options_;
+  Parameters patch_params_;  // the whole's as given (its substeps per tick)
+  int32_t period_ = 1;
+  std::vector<Vec3> render_;
+  ForceWindow filling_, closed_;  // this window's loads; the last window's, the whole's load
+  MultiRateCounts counts_;
+};
+
+}  // namespace rheo::sim
