@@ -167,7 +167,7 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
 TEST(RheodAdmission, AnObjectThatKeepsExplodingIsStoppedAndReportedNotRestoredForever) {
   RheodProcess d;
   ASSERT_TRUE(d.started()) << d.log();
-  const std::string id = StoreBean(d, 0.012);
+  const std::string id = StoreBean(d, 0.018);  // coarse: its sane settings fit the tick with room
   ASSERT_FALSE(id.empty());
   // Symplectic Euler held to one substep a tick, far below what the springs need: cheap, so
   // admitted, but its state blows up again and again.
