@@ -11,14 +11,21 @@ endif()
 
 # rheo_add_test(NAME SOURCES... LIBS ...): one GoogleTest binary, each case its own ctest test.
 function(rheo_add_test name)
-  cmake_parse_arguments(T "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  cmake_parse_arguments(T "SERIAL" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${T_SOURCES})
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main rheo_options)
   if(NOT T_TIMEOUT)
     set(T_TIMEOUT 120)
   endif()
+  # SERIAL: the tests measure the loop's rate or a predicted tick cost against the machine, so
+  # ctest runs them alone (ctest -j2 on two cores beside a compile-heavy test inflated the
+  # measured tick cost past the budget and made the loop late).
+  set(serial FALSE)
+  if(T_SERIAL)
+    set(serial TRUE)
+  endif()
   gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST
-    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}" RUN_SERIAL ${serial})
 endfunction()
 
 # rheo_include_root(TARGET PREFIX DIR): the headers in DIR are reachable as "PREFIX/name.h" by

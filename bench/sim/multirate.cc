@@ -66,7 +66,7 @@ Vec3 Couple(const Grip& grip, std::span<const Vec3> x, const Vec3& dev,
   for (size_t q = 0; q < grip.nodes.size(); ++q) {
     const int32_t i = grip.nodes[q];
     const Vec3 f = k * (dev + grip.offset[q] - x[i]);  // on the object, towards the device
-    loads.push_back({i, f});
+    loads.push_back({i, f, k});
     hand -= f;
   }
   return hand;
@@ -90,7 +90,7 @@ Run RunFull(const SimObject& settled, const Grip& grip, const Vec3& start) {
   for (int k = 0; k < kPressTicks; ++k) {
     const auto t0 = Clock::now();
     const Vec3 hand = Couple(grip, obj->positions(), DeviceAt(start, k), loads);
-    for (const NodeLoad& l : loads) obj->SetExternalForce(l.node, l.force);
+    for (const NodeLoad& l : loads) obj->SetExternalForce(l.node, l.force, l.stiffness);
     const StepResult st = obj->Step(kDt);
     r.tick_us.push_back(Us(t0, Clock::now()));
     r.force.push_back(hand);

@@ -402,6 +402,9 @@ void ComputeForces(const Model& m, const Parameters& p, const ActiveTerms& terms
     s.f[i] = s.f_ext[i];
     s.f[i].y() -= m.mass[i] * g;
   }
+  if (s.ext_springs > 0)
+    for (int32_t i = 0; i < n; ++i)
+      if (s.k_ext[i] > 0.0) s.f[i] += s.k_ext[i] * (s.x_ext[i] - s.x[i]);
   if (terms.edges) EdgeForces(m, p, terms.nonlinear_damper, s, h, a_step, lin.edges);
   if (terms.global_volume) GlobalVolumeForces(m, p, s, h, lin.global_volume);
   if (f_explicit != nullptr) {

@@ -165,7 +165,8 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   // kernel added the edges' share), kept as its inverse, 0 on fixed nodes (dv = 0 there).
   const double beta_v = jac.global_volume ? (s.global_k + s.global_c) / 3.0 : 0.0;
   for (int32_t i = 0; i < n; ++i) {
-    const double d = s.diag[i] + beta_v * s.vol_grad[i].squaredNorm();
+    double d = s.diag[i] + beta_v * s.vol_grad[i].squaredNorm();
+    if (s.ext_springs > 0) d += hh * hh * s.k_ext[i];
     const double inv = m.fixed[i] ? 0.0 : 1.0 / d;
     for (int c = 0; c < 3; ++c) s.inv_diag3[3 * i + c] = inv;
   }
@@ -182,14 +183,23 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
                              2 * static_cast<int64_t>(m.edges.size());
   if (assembled) AssembleEdgeBlocks(m, jac, s);
   // out = A in (rows of fixed nodes zero); returns in . out.
+  // The tool's springs (State::k_ext) are diagonal: hh^2 k_ext joins the masses in the product.
+  const bool springs = s.ext_springs > 0;
+  if (springs)
+    for (int32_t i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) s.sys_mass3[3 * i + c] = m.mass[i] + hh * hh * s.k_ext[i];
+  const double* sys_mass = springs ? s.sys_mass3.data() : s.mass3.data();
   auto apply_a = [&](std::vector<Vec3>& in, std::vector<Vec3>& out) {
     if (assembled)
       ApplyAssembled(m, jac, s, in, out);
     else
       ApplyJacobian(m, jac, s, in, in, out);
-    return FinishProduct(n3, s.keep3.data(), s.mass3.data(), flat(in), flat(out));
+    return FinishProduct(n3, s.keep3.data(), sys_mass, flat(in), flat(out));
   };
   ApplyJacobian(m, jac, s, s.cg_p, s.dv, s.cg_q);
+  if (springs)
+    for (int32_t i = 0; i < n; ++i)
+      if (s.k_ext[i] > 0.0) s.cg_q[i] += (hh * hh * s.k_ext[i]) * s.cg_p[i];
   // The relative tolerance is taken against |b|, the impulse of the forces over the step.
   double b2 = 0.0, v_max2 = 0.0;
   for (int32_t i = 0; i < n; ++i) {

@@ -120,7 +120,7 @@ Result<Patch> Patch::Build(const SimObject& whole, const Vec3& center, const Pat
   s.prev_h = h;
   s.have_prev_shape = same_h && ws.have_prev_shape;
   p.object_->SaveGood();
-  p.tool_.assign(p.inner_, Vec3::Zero());
+  p.tool_.assign(p.inner_, 0);
   p.tool_nodes_.reserve(p.inner_);
   p.Follow(whole);
   return p;
@@ -165,18 +165,18 @@ void Patch::Follow(const SimObject& whole) {
   if (moved2 > 0.0) object_->Wake();
 }
 
-bool Patch::SetToolForce(int32_t whole_node, const Vec3& force) {
-  if (!IsInner(whole_node) || !force.allFinite()) return false;
+bool Patch::SetToolForce(int32_t whole_node, const Vec3& force, double stiffness) {
+  if (!IsInner(whole_node) || !force.allFinite() || !(stiffness >= 0.0)) return false;
   const int32_t l = local_[whole_node];
-  if (tool_[l].isZero(0.0)) tool_nodes_.push_back(l);  // capacity: every inner node
-  tool_[l] = force;
-  object_->SetExternalForce(l, force);
+  if (!object_->SetExternalForce(l, force, stiffness)) return false;
+  if (!tool_[l]) tool_nodes_.push_back(l);  // capacity: every inner node
+  tool_[l] = 1;
   return true;
 }
 
 void Patch::ClearToolForces() {
   for (int32_t l : tool_nodes_) {
-    tool_[l].setZero();
+    tool_[l] = 0;
     object_->SetExternalForce(l, Vec3::Zero());
   }
   tool_nodes_.clear();
@@ -191,19 +191,22 @@ ForceWindow::ForceWindow(int32_t capacity)
     : slot_(2 * static_cast<size_t>(std::max(capacity, 1)), -1),
       used_(static_cast<size_t>(std::max(capacity, 1))) {}
 
-bool ForceWindow::Add(int32_t node, const Vec3& force, double dt) {
+bool ForceWindow::Add(int32_t node, const Vec3& force, double dt, double stiffness,
+                      const Vec3& at) {
   const size_t mask_size = slot_.size();
   size_t h = (static_cast<uint32_t>(node) * 2654435761u) % mask_size;
   for (size_t probe = 0; probe < mask_size; ++probe, h = (h + 1) % mask_size) {
     const int32_t e = slot_[h];
     if (e >= 0 && used_[e].node == node) {
       used_[e].impulse += force * dt;
+      used_[e].k_dt += stiffness * dt;
+      used_[e].kx_dt += (stiffness * dt) * at;
       return true;
     }
     if (e < 0) {
       if (used_count_ == used_.size()) break;
       slot_[h] = static_cast<int32_t>(used_count_);
-      used_[used_count_++] = Entry{node, force * dt};
+      used_[used_count_++] = Entry{node, force * dt, stiffness * dt, (stiffness * dt) * at};
       return true;
     }
   }
@@ -214,9 +217,13 @@ bool ForceWindow::Add(int32_t node, const Vec3& force, double dt) {
 void ForceWindow::ApplyAverage(SimObject& whole) const {
   whole.ClearExternalForces();
   if (!(duration_ > 0.0)) return;
+  const auto x = whole.positions();
   for (size_t k = 0; k < used_count_; ++k) {
     const Entry& e = used_[k];
-    whole.SetExternalForce(e.node, e.impulse / duration_);
+    // The window's average of F_t - k_t (x - x_t), a spring the whole's implicit step takes in.
+    const double k_avg = e.k_dt / duration_;
+    const Vec3 f = (e.impulse + e.kx_dt) / duration_ - k_avg * x[e.node];
+    whole.SetExternalForce(e.node, f, k_avg);
   }
 }
 
@@ -290,8 +297,12 @@ StepResult MultiRate::FastTick(std::span<const NodeLoad> loads, double dt) {
   ++counts_.ticks;
   if (patch_) patch_->ClearToolForces();
   for (const NodeLoad& l : loads) {
-    filling_.Add(l.node, l.force, dt);
-    if (!patch_ || !patch_->SetToolForce(l.node, l.force)) ++counts_.outside_loads;
+    if (l.node < 0 || l.node >= static_cast<int32_t>(render_.size())) {
+      ++counts_.outside_loads;
+      continue;
+    }
+    filling_.Add(l.node, l.force, dt, l.stiffness, render_[l.node]);
+    if (!patch_ || !patch_->SetToolForce(l.node, l.force, l.stiffness)) ++counts_.outside_loads;
   }
   filling_.AddDuration(dt);
   if (!patch_) return StepResult{};

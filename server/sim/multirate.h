@@ -54,7 +54,8 @@ class Patch {
 
   /// Tool force on a node of the whole [N], held until ClearToolForces. Returns false (and does
   /// nothing) when the node is not an inner node of the patch.
-  bool SetToolForce(int32_t whole_node, const Vec3& force);
+  /// `stiffness` as in SimObject::SetExternalForce.
+  bool SetToolForce(int32_t whole_node, const Vec3& force, double stiffness = 0.0);
   void ClearToolForces();
 
   /// One tick of the patch.
@@ -82,7 +83,7 @@ class Patch {
   std::vector<int32_t> global_;  // patch node -> whole node; inner nodes first
   std::vector<int32_t> local_;   // whole node -> patch node, or -1
   int32_t inner_ = 0;
-  std::vector<Vec3> tool_;           // tool force per inner node [N]
+  std::vector<uint8_t> tool_;        // 1: the inner node has a tool force
   std::vector<int32_t> tool_nodes_;  // inner nodes with a tool force (capacity reserved)
   Vec3 center_ = Vec3::Zero();
   double radius_ = 0.0;
@@ -94,18 +95,27 @@ class Patch {
 class ForceWindow {
  public:
   explicit ForceWindow(int32_t capacity = 2048);
-  /// Adds force x duration [N s] on `node`; false when the window is full (counted).
-  bool Add(int32_t node, const Vec3& force, double dt);
+  /// Adds force x duration [N s] on `node`, with the force's stiffness [N/m] (its -dF/dx) and
+  /// the node's position `at` when the force was taken [m]; false when the window is full
+  /// (counted).
+  bool Add(int32_t node, const Vec3& force, double dt, double stiffness = 0.0,
+           const Vec3& at = Vec3::Zero());
   /// Entries so far; their averages over the window's duration are force_sum / duration().
   struct Entry {
     int32_t node = -1;
     Vec3 impulse = Vec3::Zero();  // [N s]
+    double k_dt = 0.0;            // stiffness x duration [N s/m]
+    Vec3 kx_dt = Vec3::Zero();    // stiffness x position x duration [N s]
   };
   std::span<const Entry> entries() const { return {used_.data(), used_count_}; }
   double duration() const { return duration_; }
   void AddDuration(double dt) { duration_ += dt; }
-  /// The window's average force on each node [N] becomes the whole's external force (all other
-  /// external forces cleared): the load of its next step.
+  /// The window's average load on each node becomes the whole's external force (all other
+  /// external forces cleared): the load of its next step. A load with stiffness is averaged as
+  /// the linear model F_t - k_t (x - x_t) it stands for, and reaches the whole as a spring
+  /// (SimObject::SetExternalForce), which its implicit step takes into its system: against a
+  /// coupling stiffer than the object, a constant average force over a step of N ticks
+  /// overshoots and the exchange diverges (sim_bench multirate: N >= 5 at 500 N/m).
   void ApplyAverage(SimObject& whole) const;
   void Clear();
   int64_t overflowed() const { return overflowed_; }  // since the last Clear
@@ -122,6 +132,7 @@ class ForceWindow {
 struct NodeLoad {
   int32_t node = 0;
   Vec3 force = Vec3::Zero();
+  double stiffness = 0.0;  ///< -dF/dx of the load [N/m] (isotropic), e.g. a coupling spring's
 };
 
 struct MultiRateCounts {

@@ -46,6 +46,9 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
   s.a.assign(ne, voigt_ratio);
   s.tension.assign(ne, 0.0);
   s.f_ext.assign(n, Vec3::Zero());
+  s.k_ext.assign(n, 0.0);
+  s.x_ext.assign(n, Vec3::Zero());
+  s.ext_springs = 0;
   s.floor_reaction.assign(n, Vec3::Zero());
   s.f.assign(n, Vec3::Zero());
   s.vol_grad.assign(n, Vec3::Zero());
@@ -69,7 +72,7 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
                     &s.f_shape_prev, &s.dv_prev})
     vec->assign(n, Vec3::Zero());
   s.diag.assign(n, 1.0);
-  for (auto* vec : {&s.inv_diag3, &s.mass3, &s.keep3}) vec->assign(3 * n, 0.0);
+  for (auto* vec : {&s.inv_diag3, &s.mass3, &s.keep3, &s.sys_mass3}) vec->assign(3 * n, 0.0);
   s.good_x = s.x;
   s.good_v = s.v;
   s.good_a = s.a;
@@ -380,15 +383,24 @@ void SimObject::Wake() {
   rest_time_ = 0.0;
 }
 
-bool SimObject::SetExternalForce(int32_t node, const Vec3& force) {
-  if (node < 0 || node >= model_.num_nodes || !force.allFinite()) return false;
+bool SimObject::SetExternalForce(int32_t node, const Vec3& force, double stiffness) {
+  if (node < 0 || node >= model_.num_nodes || !force.allFinite() || !std::isfinite(stiffness) ||
+      stiffness < 0.0)
+    return false;
   state_.f_ext[node] = force;
+  const bool had = state_.k_ext[node] > 0.0;
+  state_.k_ext[node] = stiffness;
+  state_.x_ext[node] = state_.x[node];
+  state_.ext_springs += (stiffness > 0.0) - had;
   if (!force.isZero(0.0)) Wake();
   return true;
 }
 
 void SimObject::ClearExternalForces() {
   for (auto& f : state_.f_ext) f.setZero();
+  if (state_.ext_springs > 0)
+    for (auto& k : state_.k_ext) k = 0.0;
+  state_.ext_springs = 0;
   Wake();
 }
 

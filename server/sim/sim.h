@@ -110,9 +110,13 @@ class SimObject {
   /// Advances one tick of dt seconds (substeps inside). Never allocates.
   StepResult Step(double dt);
 
-  /// Tool force on one node [N], held until changed. Out-of-range nodes are ignored (returns
-  /// false). A non-zero force wakes the object.
-  bool SetExternalForce(int32_t node, const Vec3& force);
+  /// Tool force on one node [N], held until changed. Out-of-range nodes, non-finite values and a
+  /// negative stiffness are ignored (returns false). A non-zero force wakes the object.
+  /// `stiffness` [N/m] is the force's isotropic -dF/dx: the node then feels
+  /// force + stiffness (x_set - x), a spring about where it was when the force was set, and the
+  /// implicit integrators take that spring into their system (a coupling far stiffer than the
+  /// object stays stable over a step of many ms: sim/multirate.h). 0: a constant force.
+  bool SetExternalForce(int32_t node, const Vec3& force, double stiffness = 0.0);
   void ClearExternalForces();
   /// Holds a node in place (or releases it) at its current position.
   bool SetFixed(int32_t node, bool fixed);

@@ -17,7 +17,15 @@ struct State {
   std::vector<double> a;        // Voigt length ratio per edge (e) [-]
   std::vector<double> tension;  // last tension per edge, drives eq. 3 (e) [N]
 
-  std::vector<Vec3> f_ext;           // external (tool) force per node (n) [N]
+  std::vector<Vec3> f_ext;  // external (tool) force per node (n) [N]
+  // Its stiffness: the external force on node i is f_ext + k_ext (x_ext - x), a spring about the
+  // position x_ext it was set at, taken into the implicit system (so a stiff tool coupling stays
+  // stable over a long step). ext_springs counts the nodes with k_ext > 0; with none the
+  // integrators do not look at these.
+  std::vector<double> k_ext;  // (n) [N/m]
+  std::vector<Vec3> x_ext;    // (n) [m]
+  int32_t ext_springs = 0;
+  std::vector<double> sys_mass3;  // mass3 + hh^2 k_ext for the substep, when ext_springs (3n) [kg]
   std::vector<Vec3> floor_reaction;  // floor force on each node during the last tick (n) [N]
 
   // Scratch, sized once.

@@ -23,6 +23,11 @@ using namespace std::chrono_literals;
 // tests on both cores); the optimised stage holds the 100 ms.
 constexpr double kCancelLatencyMs = kSanitizerBuild ? 500.0 : 100.0;
 using Clock = std::chrono::steady_clock;
+// A worker still running burns a core: ~0.3 s of CPU per 300 ms window. A stopped one leaves the
+// idle loop's share plus noise: the 1 kHz loop, a stream's teardown and the clock-tick
+// granularity of /proc (10 ms) gave up to idle + 0.06 s on two busy cores. A third of a core
+// separates the two cases with room on both sides.
+constexpr double kStoppedCpuSlack = 0.1;
 
 // CPU time the process has used [s] (user + system, from /proc/PID/stat).
 double ProcessCpu(int pid) {
@@ -79,8 +84,9 @@ TEST(RheodCancel, CancelJobFreesTheCoreInsideTheSketchStage) {
   EXPECT_NE(s.error_message().find("cancelled"), std::string::npos) << s.error_message();
   EXPECT_LT(latency_ms, kCancelLatencyMs) << "from CancelJob to the end of the stream";
   const double after = CpuOver(d.pid(), 300ms);
-  EXPECT_LT(after, idle + 0.05) << "CPU over 300 ms: idle " << idle << " s, with the job " << busy
-                                << " s in 200 ms, after the cancel " << after << " s";
+  EXPECT_LT(after, idle + kStoppedCpuSlack)
+      << "CPU over 300 ms: idle " << idle << " s, with the job " << busy
+      << " s in 200 ms, after the cancel " << after << " s";
   std::printf(
       "cancel: stream ended %.1f ms after CancelJob; CPU per 300 ms idle %.3f s, "
       "after cancel %.3f s (job: %.3f s per 200 ms)\n",
@@ -107,7 +113,8 @@ TEST(RheodCancel, JobDeadlineFreesTheCoreInsideTheSketchStage) {
   std::this_thread::sleep_until(start + 400ms +
                                 std::chrono::milliseconds(static_cast<int>(kCancelLatencyMs)));
   const double after = CpuOver(d.pid(), 300ms);
-  EXPECT_LT(after, idle + 0.05) << "idle " << idle << " s, after the deadline " << after << " s";
+  EXPECT_LT(after, idle + kStoppedCpuSlack)
+      << "idle " << idle << " s, after the deadline " << after << " s";
 }
 
 TEST(RheodCancel, ExtractContourStopsAtTheClientsDeadline) {
@@ -125,9 +132,11 @@ TEST(RheodCancel, ExtractContourStopsAtTheClientsDeadline) {
   const double took_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   EXPECT_EQ(s.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED) << s.error_message();
   EXPECT_LT(took_ms, 1000.0);
-  std::this_thread::sleep_until(start + 400ms);
+  std::this_thread::sleep_until(start + 300ms +
+                                std::chrono::milliseconds(static_cast<int>(kCancelLatencyMs)));
   const double after = CpuOver(d.pid(), 300ms);
-  EXPECT_LT(after, idle + 0.05) << "idle " << idle << " s, after the deadline " << after << " s";
+  EXPECT_LT(after, idle + kStoppedCpuSlack)
+      << "idle " << idle << " s, after the deadline " << after << " s";
   std::printf("ExtractContour: %s after %.1f ms; CPU per 300 ms idle %.3f s, after %.3f s\n",
               s.error_message().c_str(), took_ms, idle, after);
 
