@@ -18,11 +18,27 @@ Result<Patch> Patch::Build(const SimObject& whole, const Vec3& center, const Pat
   const Model& wm = whole.model();
   const State& ws = whole.state();
   const int32_t n = wm.num_nodes;
+  if (options.max_inner_nodes < 0) {
+    return InvalidArgument("patch max_inner_nodes " + std::to_string(options.max_inner_nodes) +
+                           " is negative");
+  }
+  double r2 = options.radius * options.radius;
+  if (options.max_inner_nodes > 0) {
+    std::vector<double> d2;
+    for (int32_t i = 0; i < n; ++i) {
+      const double q = (ws.x[i] - center).squaredNorm();
+      if (!wm.fixed[i] && q <= r2) d2.push_back(q);
+    }
+    const size_t cap = static_cast<size_t>(options.max_inner_nodes);
+    if (d2.size() > cap) {
+      std::nth_element(d2.begin(), d2.begin() + (cap - 1), d2.end());
+      r2 = d2[cap - 1];
+    }
+  }
   Patch p;
   p.center_ = center;
-  p.radius_ = options.radius;
+  p.radius_ = std::sqrt(r2);
   p.local_.assign(n, -1);
-  const double r2 = options.radius * options.radius;
   for (int32_t i = 0; i < n; ++i) {
     if (wm.fixed[i] || (ws.x[i] - center).squaredNorm() > r2) continue;
     p.local_[i] = static_cast<int32_t>(p.global_.size());

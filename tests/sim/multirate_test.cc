@@ -85,6 +85,26 @@ TEST(Patch, InnerNodesMoveAsInTheWholeWhenTheBoundaryFollowsIt) {
   EXPECT_LT(worst, 0.05 * moved) << "worst " << worst << " of " << moved;
 }
 
+TEST(Patch, ItsRadiusShrinksToTheNearestMaxInnerNodes) {
+  auto whole = SettledBox();
+  const Vec3 c = whole->positions()[TopMiddle(*whole)];
+  PatchOptions wide{0.05};
+  wide.max_inner_nodes = 0;
+  auto all = Patch::Build(*whole, c, wide);
+  ASSERT_TRUE(all.ok());
+  wide.max_inner_nodes = 20;
+  auto few = Patch::Build(*whole, c, wide);
+  ASSERT_TRUE(few.ok());
+  EXPECT_GT(all->inner_nodes(), 20);
+  EXPECT_GE(few->inner_nodes(), 20);  // ties at the 20th distance may add a few
+  EXPECT_LE(few->inner_nodes(), 24);
+  EXPECT_LT(few->radius(), 0.05);
+  for (int32_t l = 0; l < few->inner_nodes(); ++l)
+    EXPECT_LE((whole->positions()[few->nodes()[l]] - c).norm(), few->radius() + 1e-12);
+  wide.max_inner_nodes = -1;
+  EXPECT_FALSE(Patch::Build(*whole, c, wide).ok());
+}
+
 TEST(Patch, ToolForcesOutsideTheInnerNodesAreRefused) {
   auto whole = SettledBox();
   auto patch = Patch::Build(*whole, whole->positions()[TopMiddle(*whole)], PatchOptions{0.01});
