@@ -20,12 +20,12 @@ function(rheo_add_test name)
   # SERIAL: the tests measure the loop's rate or a predicted tick cost against the machine, so
   # ctest runs them alone (ctest -j2 on two cores beside a compile-heavy test inflated the
   # measured tick cost past the budget and made the loop late).
-  set(serial FALSE)
+  set(extra "")
   if(T_SERIAL)
-    set(serial TRUE)
+    set(extra RUN_SERIAL TRUE)
   endif()
   gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST
-    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}" RUN_SERIAL ${serial})
+    PROPERTIES ${extra} TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
 endfunction()
 
 # rheo_include_root(TARGET PREFIX DIR): the headers in DIR are reachable as "PREFIX/name.h" by
