@@ -142,6 +142,9 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   // b = u0. (Fused into the edge force kernel, it cost 5 % more per tick at 5k and 20k tets.) The
   // diagonal starts at the masses; the edge kernel adds its share.
   const double k_scale = bdf2 ? 1.0 / (3.0 * hh) : 0.0;
+  // The tool's springs (State::k_ext) are diagonal: hh^2 k_ext joins the masses in the
+  // diagonal, the product and the warm start's residual.
+  const bool springs = s.ext_springs > 0;
   for (int32_t i = 0; i < n; ++i) {
     const Vec3 last = s.dv[i];
     Vec3 dv = 2.0 * last - s.dv_prev[i];
@@ -151,6 +154,10 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     const Vec3 k = bdf2 ? Vec3(s.v[i] + k_scale * (s.x[i] - s.x_prev[i])) : s.v[i];
     s.cg_p[i] = k + dv;
     s.diag[i] = m.mass[i];
+    if (springs) {
+      s.diag[i] += hh * hh * s.k_ext[i];
+      for (int c = 0; c < 3; ++c) s.sys_mass3[3 * i + c] = s.diag[i];
+    }
   }
   ComputeForces(m, p, terms, s, hh, /*a_step=*/h, /*linearise=*/jac,
                 shape_explicit ? s.f_shape.data() : nullptr);
@@ -165,8 +172,7 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   // kernel added the edges' share), kept as its inverse, 0 on fixed nodes (dv = 0 there).
   const double beta_v = jac.global_volume ? (s.global_k + s.global_c) / 3.0 : 0.0;
   for (int32_t i = 0; i < n; ++i) {
-    double d = s.diag[i] + beta_v * s.vol_grad[i].squaredNorm();
-    if (s.ext_springs > 0) d += hh * hh * s.k_ext[i];
+    const double d = s.diag[i] + beta_v * s.vol_grad[i].squaredNorm();
     const double inv = m.fixed[i] ? 0.0 : 1.0 / d;
     for (int c = 0; c < 3; ++c) s.inv_diag3[3 * i + c] = inv;
   }
@@ -183,11 +189,6 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
                              2 * static_cast<int64_t>(m.edges.size());
   if (assembled) AssembleEdgeBlocks(m, jac, s);
   // out = A in (rows of fixed nodes zero); returns in . out.
-  // The tool's springs (State::k_ext) are diagonal: hh^2 k_ext joins the masses in the product.
-  const bool springs = s.ext_springs > 0;
-  if (springs)
-    for (int32_t i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) s.sys_mass3[3 * i + c] = m.mass[i] + hh * hh * s.k_ext[i];
   const double* sys_mass = springs ? s.sys_mass3.data() : s.mass3.data();
   auto apply_a = [&](std::vector<Vec3>& in, std::vector<Vec3>& out) {
     if (assembled)
@@ -197,9 +198,6 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     return FinishProduct(n3, s.keep3.data(), sys_mass, flat(in), flat(out));
   };
   ApplyJacobian(m, jac, s, s.cg_p, s.dv, s.cg_q);
-  if (springs)
-    for (int32_t i = 0; i < n; ++i)
-      if (s.k_ext[i] > 0.0) s.cg_q[i] += (hh * hh * s.k_ext[i]) * s.cg_p[i];
   // The relative tolerance is taken against |b|, the impulse of the forces over the step.
   double b2 = 0.0, v_max2 = 0.0;
   for (int32_t i = 0; i < n; ++i) {
@@ -207,6 +205,7 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     if (bdf2) b += m.mass[i] * (s.v[i] - s.v_prev[i]) / 3.0;
     if (m.fixed[i]) b.setZero();
     s.cg_r[i] = m.fixed[i] ? Vec3::Zero() : Vec3(b - m.mass[i] * s.dv[i] - s.cg_q[i]);
+    if (springs && !m.fixed[i]) s.cg_r[i] -= (hh * hh * s.k_ext[i]) * s.cg_p[i];
     b2 += b.squaredNorm();
     v_max2 = std::max(v_max2, s.v[i].squaredNorm());
   }

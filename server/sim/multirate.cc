@@ -6,8 +6,7 @@
 
 namespace rheo::sim {
 
-Result<Patch> Patch::Build(const SimObject& whole, const Vec3& center, const PatchOptions& options,
-                           const Parameters* patch_params) {
+Status CheckPatchOptions(const PatchOptions& options) {
   if (!(options.radius > 0.0 && options.radius <= 1.0)) {
     return InvalidArgument("patch radius " + std::to_string(options.radius) +
                            " m is outside (0, 1]");
@@ -15,13 +14,23 @@ Result<Patch> Patch::Build(const SimObject& whole, const Vec3& center, const Pat
   if (!(options.tick > 0.0 && options.tick <= 0.1)) {
     return InvalidArgument("patch tick " + std::to_string(options.tick) + " s is outside (0, 0.1]");
   }
-  const Model& wm = whole.model();
-  const State& ws = whole.state();
-  const int32_t n = wm.num_nodes;
+  if (!(options.whole_substep > 0.0 && options.whole_substep <= 0.1)) {
+    return InvalidArgument("whole substep " + std::to_string(options.whole_substep) +
+                           " s is outside (0, 0.1]");
+  }
   if (options.max_inner_nodes < 0) {
     return InvalidArgument("patch max_inner_nodes " + std::to_string(options.max_inner_nodes) +
                            " is negative");
   }
+  return {};
+}
+
+Result<Patch> Patch::Build(const SimObject& whole, const Vec3& center, const PatchOptions& options,
+                           const Parameters* patch_params) {
+  if (Status s = CheckPatchOptions(options); !s.ok()) return s.error();
+  const Model& wm = whole.model();
+  const State& ws = whole.state();
+  const int32_t n = wm.num_nodes;
   double r2 = options.radius * options.radius;
   if (options.max_inner_nodes > 0) {
     std::vector<double> d2;
@@ -257,14 +266,8 @@ Result<MultiRate> MultiRate::Create(std::unique_ptr<SimObject> whole, int32_t pe
     return InvalidArgument("multi-rate period of " + std::to_string(period) +
                            " ticks is outside [1, 1000]");
   }
-  if (!(options.radius > 0.0 && options.radius <= 1.0)) {
-    return InvalidArgument("patch radius " + std::to_string(options.radius) +
-                           " m is outside (0, 1]");
-  }
-  if (!(options.whole_substep > 0.0 && options.whole_substep <= 0.1)) {
-    return InvalidArgument("whole substep " + std::to_string(options.whole_substep) +
-                           " s is outside (0, 0.1]");
-  }
+  // Checked here too: Sync() builds patches later and keeps the old one when a build fails.
+  if (Status s = CheckPatchOptions(options); !s.ok()) return s.error();
   // The whole's step covers `period` ticks in substeps of at most whole_substep.
   const double step = period * options.tick;
   Parameters p = whole->parameters();

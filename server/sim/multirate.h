@@ -44,6 +44,10 @@ struct PatchOptions {
   int32_t max_inner_nodes = 64;
 };
 
+/// INVALID_ARGUMENT naming the first option out of its range. Patch::Build and MultiRate::Create
+/// both check.
+Status CheckPatchOptions(const PatchOptions& options);
+
 class Patch {
  public:
   /// The patch of `whole` around `center` at the whole's current state (positions, velocities,

@@ -263,6 +263,12 @@ TEST(MultiRate, AStiffCouplingStaysStableOverALongPeriodAsASpringInTheWhole) {
 TEST(MultiRate, RefusesABadPeriod) {
   EXPECT_FALSE(MultiRate::Create(SettledBox(), 0, PatchOptions{}).ok());
   EXPECT_FALSE(MultiRate::Create(nullptr, 5, PatchOptions{}).ok());
+  PatchOptions bad;
+  bad.max_inner_nodes = -1;  // refused at Create, not only at the first Sync's build
+  EXPECT_FALSE(MultiRate::Create(SettledBox(), 5, bad).ok());
+  bad = PatchOptions{};
+  bad.tick = 0.0;
+  EXPECT_FALSE(MultiRate::Create(SettledBox(), 5, bad).ok());
 }
 
 }  // namespace
