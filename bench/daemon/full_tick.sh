@@ -47,7 +47,7 @@ run() {
     sleep 0.05
   done
   [ -n "${addr:-}" ] || { echo "rheod did not start:" >&2; cat "$log" >&2; exit 1; }
-  local ctl=("$RHEOCTL" --server "$addr")
+  local ctl=("$RHEOCTL" --server "$addr" --token-file "$data/admin.token")
   "${ctl[@]}" object create "$SKETCH" --name bench --resolution "$RESOLUTION" >/dev/null 2>&1
   local id tets
   id=$("${ctl[@]}" object list | awk 'NR==1{print $1}')

@@ -20,11 +20,13 @@ int SceneShow(const Global& g) {
 }
 
 int SceneAdd(const Global& g, const std::string& id, const std::string& preset,
-             const std::string& integrator, const std::vector<double>& at,
-             const std::vector<std::string>& sets) {
+             const std::string& integrator, const std::string& multi_rate,
+             const std::vector<double>& at, const std::vector<std::string>& sets) {
   rheo::v1::AddToSceneRequest req;
   req.set_object_id(id);
   req.set_preset(preset);
+  if (multi_rate == "off") req.set_multi_rate(rheo::v1::MULTI_RATE_MODE_OFF);
+  if (multi_rate == "on") req.set_multi_rate(rheo::v1::MULTI_RATE_MODE_ON);
   if (integrator == "explicit") req.set_integrator(rheo::v1::INTEGRATOR_SYMPLECTIC_EULER);
   if (integrator == "implicit") req.set_integrator(rheo::v1::INTEGRATOR_IMPLICIT);
   if (at.size() == 3) {
@@ -41,6 +43,16 @@ int SceneAdd(const Global& g, const std::string& id, const std::string& preset,
               o.object_id().c_str(), o.preset().c_str(),
               o.integrator() == rheo::v1::INTEGRATOR_IMPLICIT ? "implicit" : "symplectic Euler",
               o.predicted_tick_us());
+  if (o.has_multi_rate()) {
+    const rheo::v1::MultiRate& m = o.multi_rate();
+    std::printf(
+        "  multi-rate: the %u nodes nearest the tool (%u tets) every tick; the whole every %u "
+        "ticks, about %.1f ms a step%s\n",
+        m.patch_inner_nodes(), m.patch_tets(), m.period_ticks(), m.predicted_whole_step_ms(),
+        m.predicted_whole_step_ms() > m.period_ticks() ? " (longer than its period: the whole will "
+                                                         "run behind real time)"
+                                                       : "");
+  }
   return 0;
 }
 
@@ -68,7 +80,7 @@ int SceneControl(const Global& g, rheo::v1::RunCommand cmd) {
 
 void AddSceneCommand(CLI::App& app, const Global& g) {
   struct SceneArgs {
-    std::string id, preset, integrator;
+    std::string id, preset, integrator, multi_rate = "auto";
     std::vector<double> at;
     std::vector<std::string> sets;
     uint32_t instance = 0;
@@ -84,10 +96,16 @@ void AddSceneCommand(CLI::App& app, const Global& g) {
   scene_add
       ->add_option("--integrator", a->integrator, "explicit or implicit (default: the preset's)")
       ->check(CLI::IsMember({"explicit", "implicit"}));
+  scene_add
+      ->add_option("--multi-rate", a->multi_rate,
+                   "auto: step the region near the tool every tick and the whole at its own "
+                   "rate when the object does not fit the tick; off: refuse it then; on: always")
+      ->check(CLI::IsMember({"auto", "off", "on"}));
   scene_add->add_option("--at", a->at, "centre of the rest shape: x y z [m]")->expected(3);
   scene_add->add_option("--set", a->sets, "parameter overrides name=value");
-  scene_add->callback(
-      [&g, a] { g_exit_code = SceneAdd(g, a->id, a->preset, a->integrator, a->at, a->sets); });
+  scene_add->callback([&g, a] {
+    g_exit_code = SceneAdd(g, a->id, a->preset, a->integrator, a->multi_rate, a->at, a->sets);
+  });
   auto* scene_remove = scene->add_subcommand("remove", "remove an instance from the scene");
   scene_remove->add_option("INSTANCE", a->instance)->required();
   scene_remove->callback([&g, a] { g_exit_code = SceneRemove(g, a->instance); });

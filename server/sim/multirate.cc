@@ -161,13 +161,13 @@ double SixVolume(std::span<const std::array<int32_t, 3>> faces, std::span<const 
 }
 }  // namespace
 
-void Patch::Follow(const SimObject& whole) {
+void Patch::Follow(const SimObject& whole, bool inner_nodes_too) {
   const State& ws = whole.state();
   State& s = object_->state_;
   const int32_t pn = static_cast<int32_t>(global_.size());
   const double h = s.have_prev ? s.prev_h : 0.0;
   double moved2 = 0.0;
-  for (int32_t l = inner_; l < pn; ++l) {
+  for (int32_t l = inner_nodes_too ? 0 : inner_; l < pn; ++l) {
     const Vec3& x = ws.x[global_[l]];
     const Vec3& v = ws.v[global_[l]];
     moved2 = std::max(moved2, (x - s.x[l]).squaredNorm() + v.squaredNorm());
@@ -177,7 +177,12 @@ void Patch::Follow(const SimObject& whole) {
     // substep moves it by h v.
     s.x_prev[l] = x - h * v;
     s.v_prev[l] = v;
+    if (l < inner_) {
+      s.dv[l].setZero();
+      s.dv_prev[l].setZero();
+    }
   }
+  if (inner_nodes_too) s.have_prev_shape = false;
   // The whole's volume with the patch's faces where the patch has them: the patch's faces at the
   // whole's positions are taken out, so that its own (at its inner nodes' positions) count.
   const Parameters& wp = whole.parameters();
@@ -188,6 +193,16 @@ void Patch::Follow(const SimObject& whole) {
     s.volume_offset = (whole6 - part6) / 6.0;
   }
   if (moved2 > 0.0) object_->Wake();
+}
+
+void Patch::HoldBoundary() {
+  State& s = object_->state_;
+  const int32_t pn = static_cast<int32_t>(global_.size());
+  for (int32_t l = inner_; l < pn; ++l) {
+    s.v[l].setZero();
+    s.x_prev[l] = s.x[l];
+    s.v_prev[l].setZero();
+  }
 }
 
 bool Patch::SetToolForce(int32_t whole_node, const Vec3& force, double stiffness) {
@@ -268,36 +283,70 @@ Result<MultiRate> MultiRate::Create(std::unique_ptr<SimObject> whole, int32_t pe
   }
   // Checked here too: Sync() builds patches later and keeps the old one when a build fails.
   if (Status s = CheckPatchOptions(options); !s.ok()) return s.error();
-  // The whole's step covers `period` ticks in substeps of at most whole_substep.
-  const double step = period * options.tick;
-  Parameters p = whole->parameters();
-  const Parameters given = p;
-  const int32_t per_tick = SimObject::ImplicitSubsteps(p, options.tick);
-  const double substeps =
-      std::max<double>(per_tick, std::ceil(step / options.whole_substep - 1e-9));
-  p.implicit_substeps = std::min(substeps, 1000.0);
-  if (Status s = whole->SetParameters(p); !s.ok()) return s.error();
   MultiRate mr;
-  mr.patch_params_ = given;
   mr.whole_ = std::move(whole);
   mr.period_ = period;
   mr.options_ = options;
+  if (Status s = mr.SetWholeParameters(mr.whole_->parameters()); !s.ok()) return s.error();
   const auto x = mr.whole_->positions();
   mr.render_.assign(x.begin(), x.end());
   return mr;
 }
 
+Status MultiRate::SetWholeParameters(const Parameters& given) {
+  // The whole's step covers `period` ticks in substeps of at most whole_substep.
+  const double step = period_ * options_.tick;
+  Parameters p = given;
+  const int32_t per_tick = SimObject::ImplicitSubsteps(p, options_.tick);
+  const double substeps =
+      std::max<double>(per_tick, std::ceil(step / options_.whole_substep - 1e-9));
+  p.implicit_substeps = std::min(substeps, 1000.0);
+  if (Status s = whole_->SetParameters(p); !s.ok()) return s;
+  patch_params_ = given;
+  whole_substeps_ = static_cast<int32_t>(p.implicit_substeps);
+  return {};
+}
+
+int32_t MultiRate::RefineWholeSubsteps(int32_t max_substeps) {
+  const int32_t next = std::min({2 * whole_substeps_, max_substeps, 1000});
+  if (next <= whole_substeps_) return whole_substeps_;
+  if (whole_->SetParameter("implicit_substeps", next).ok()) whole_substeps_ = next;
+  return whole_substeps_;
+}
+
+Status MultiRate::SetParameters(const Parameters& params) {
+  return SetWholeParameters(params);
+}
+
+bool MultiRate::WantsPatch(const Vec3& focus) const {
+  return !patch_ || (focus - patch_->center()).norm() > 0.5 * patch_->radius();
+}
+
+Result<Patch> MultiRate::BuildPatch(const Vec3& focus) const {
+  return Patch::Build(*whole_, focus, options_, &patch_params_);
+}
+
 void MultiRate::Sync(const Vec3& focus) {
-  ++counts_.syncs;
-  if (!patch_ || (focus - patch_->center()).norm() > 0.5 * patch_->radius()) {
-    Result<Patch> p = Patch::Build(*whole_, focus, options_, &patch_params_);
-    if (p.ok()) {
-      patch_ = std::move(*p);
-      ++counts_.rebuilds;
-    }
+  std::optional<Patch> fresh;
+  bool replace = false;
+  if (WantsPatch(focus)) {
+    Result<Patch> p = BuildPatch(focus);
     // No node near the focus: the old patch (or none) stays; the tool is not touching.
-  } else {
-    patch_->Follow(*whole_);
+    if (p.ok()) {
+      fresh = std::move(*p);
+      replace = true;
+    }
+  }
+  Sync(fresh, replace);
+}
+
+void MultiRate::Sync(std::optional<Patch>& exchange, bool replace, bool refresh) {
+  ++counts_.syncs;
+  if (replace) {
+    if (exchange) ++counts_.rebuilds;
+    patch_.swap(exchange);
+  } else if (patch_) {
+    patch_->Follow(*whole_, refresh);
   }
   const auto x = whole_->positions();
   std::copy(x.begin(), x.end(), render_.begin());
@@ -309,6 +358,7 @@ void MultiRate::Sync(const Vec3& focus) {
 
 StepResult MultiRate::StepWhole(double dt) {
   closed_.ApplyAverage(*whole_);
+  if (!(dt > 0.0)) return StepResult{};
   return whole_->Step(dt);
 }
 

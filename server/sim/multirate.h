@@ -58,8 +58,14 @@ class Patch {
 
   /// The whole has reached a new state: boundary nodes take its positions and velocities, and the
   /// whole's volume outside the patch's faces is taken again. A pass over the whole's faces; does
-  /// not allocate.
-  void Follow(const SimObject& whole);
+  /// not allocate. `inner_nodes_too`: the inner nodes take the whole's state as well (a patch
+  /// that did not step since the last sync, the tool away; their history restarts).
+  void Follow(const SimObject& whole, bool inner_nodes_too = false);
+
+  /// The boundary stops where it is (zero velocity) until the next Follow: for a whole that runs
+  /// late, whose last velocities would otherwise carry the boundary on past where the whole is
+  /// (a falling object's boundary through the floor). Does not allocate.
+  void HoldBoundary();
 
   /// Tool force on a node of the whole [N], held until ClearToolForces. Returns false (and does
   /// nothing) when the node is not an inner node of the patch.
@@ -172,8 +178,45 @@ class MultiRate {
   void Sync(const Vec3& focus);
   /// The whole's step over the period (the slow part).
   StepResult StepWhole(double dt);
+
+  /// The same split for a tick's thread that must not allocate (the daemon's loop): the patch is
+  /// built on the whole's thread, between its steps, and handed over at the sync.
+  ///
+  /// Whether the patch should be built again for `focus`: there is none, or the focus has moved
+  /// more than half its radius from where it was built. Tick's thread.
+  bool WantsPatch(const Vec3& focus) const;
+  /// A patch of the whole's current state around `focus` (allocates; the whole's thread, while
+  /// the whole is not stepping). INVALID_ARGUMENT when no free node lies near the focus.
+  Result<Patch> BuildPatch(const Vec3& focus) const;
+  /// Sync without building: with `replace`, the patch and `exchange` swap (an empty `exchange`
+  /// drops the patch), so `exchange` then holds the old patch, to be freed on another thread;
+  /// without, the patch follows the whole. Does not allocate. Tick's thread, whole not stepping.
+  /// `refresh`: the patch did not step since the last sync (no tool load): all its nodes take the
+  /// whole's state (Patch::Follow with inner nodes).
+  void Sync(std::optional<Patch>& exchange, bool replace, bool refresh = false);
+  /// The patch's boundary holds still until the next sync (Patch::HoldBoundary). Tick's thread.
+  void HoldPatchBoundary() {
+    if (patch_) patch_->HoldBoundary();
+  }
+  /// Duration of the window that the whole's next step takes as its load [s]: the ticks since
+  /// the sync before the last. A whole that runs late steps over the time it missed.
+  double window_duration() const { return closed_.duration(); }
+  /// New parameters for the whole (its substeps made for its period again) and for the patches
+  /// built from now on. The whole's thread; allocates.
+  Status SetParameters(const Parameters& params);
+  /// Twice the whole's substeps per step (at most `max_substeps`), e.g. after its step had to be
+  /// restored (a drop onto the floor that its substeps did not hold). Kept until SetParameters.
+  /// The whole's thread; returns the substeps now.
+  int32_t RefineWholeSubsteps(int32_t max_substeps);
+  int32_t whole_substeps() const { return whole_substeps_; }
   /// The patch's tick with the tool's loads.
   StepResult FastTick(std::span<const NodeLoad> loads, double dt);
+  /// A tick in which the patch waits (no tool load): the window's duration grows, nothing steps;
+  /// the next Sync should refresh the patch.
+  void IdleTick(double dt) {
+    ++counts_.ticks;
+    filling_.AddDuration(dt);
+  }
 
   /// The surface to render against: the whole at its last sync, the patch's inner nodes over it.
   std::span<const Vec3> positions() const { return render_; }
@@ -189,8 +232,12 @@ class MultiRate {
   std::unique_ptr<SimObject> whole_;
   std::optional<Patch> patch_;
   PatchOptions options_;
+  /// The whole's parameters with implicit substeps for a step of `period_` ticks.
+  Status SetWholeParameters(const Parameters& given);
+
   Parameters patch_params_;  // the whole's as given (its substeps per tick)
   int32_t period_ = 1;
+  int32_t whole_substeps_ = 1;
   std::vector<Vec3> render_;
   ForceWindow filling_, closed_;  // this window's loads; the last window's, the whole's load
   MultiRateCounts counts_;

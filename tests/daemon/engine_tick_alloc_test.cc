@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <memory>
+#include <thread>
 #include <vector>
 
 #include "alloc_counter.h"
@@ -158,6 +160,85 @@ TEST(EngineTickAlloc, TheWholeTickAllocatesNothing) {
 
   EXPECT_EQ(allocations, 0) << "allocations in " << tick << " ticks";
   EXPECT_GT(tick, 500u);
+}
+
+// A multi-rate object pressed by the network tool: the loop's side (the patch's tick, the loads,
+// the syncs taking the whole's results and the patches it built as the tool moved) allocates
+// nothing on the ticking thread; the whole's thread does the allocating.
+TEST(EngineTickAlloc, AMultiRateObjectPressedAllocatesNothingOnTheLoop) {
+  DeviceLinkOptions o;
+  o.kind = DeviceKind::kNetwork;
+  o.realtime = false;
+  auto opened = DeviceLink::Open(o);
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  DeviceLink& link = **opened;
+  EngineOptions eo;
+  eo.loop.realtime_priority = false;
+  eo.loop.lock_memory = false;
+  eo.max_frame_vertices = 2000;
+  Engine engine(eo);
+  engine.AttachDevice(&link);
+
+  Built box = MakeBox(link, engine.tool(), "organ", sim::Integrator::kImplicitEuler, 0.0, true);
+  const Vec3 top = box.object->positions()[0];
+  Command origin;
+  origin.type = Command::Type::kSetToolOrigin;
+  origin.vec = {0.0, top.y() + 0.05, 0.0};
+  ASSERT_NE(engine.Submit(origin), 0u);
+  double top_y = -1e9;
+  for (const Vec3& x : box.object->positions()) top_y = std::max(top_y, x.y());
+  auto mr = MultiRateObject::Create(std::move(box.object), 10, {}, Vec3(0.0, top_y, 0.0));
+  ASSERT_TRUE(mr.ok()) << mr.error().message;
+  const MultiRateObject* multirate = mr->get();
+  Command add;
+  add.type = Command::Type::kAddObject;
+  add.instance_id = 1;
+  add.multirate = mr->release();
+  add.contact = box.contact.release();
+  ASSERT_NE(engine.Submit(add), 0u);
+
+  long allocations = 0;
+  int contact_ticks = 0;
+  auto next = std::chrono::steady_clock::now();
+  for (uint64_t tick = 0; tick < 1200; ++tick) {
+    if (tick >= 100) {
+      // Down onto the box, then sideways 1.5 cm along its top (the patch is built again on the
+      // way).
+      const double s = std::min(1.0, (tick - 100) / 400.0);
+      const double side = tick > 700 ? 0.015 * std::min(1.0, (tick - 700) / 300.0) : 0.0;
+      drivers::Pose pose;
+      pose.position = Vec3(side, (top_y - (origin.vec[1])) - 0.006 * s, 0.0);
+      link.network()->Push(pose, 0);
+    }
+    rt::TickInfo info;
+    info.tick = tick;
+    info.dt = 1e-3;
+    info.deadline_ns = info.start_ns = rt::Loop::NowNs();
+    {
+      testing::AllocationCounter count;
+      engine.TickOnce(info);
+      allocations += count.count();
+    }
+    if (engine.AcquireFrame() && engine.frame().tool.in_contact) ++contact_ticks;
+    engine.DrainRetired();
+    next += std::chrono::milliseconds(1);  // real time, so that the whole keeps pace
+    std::this_thread::sleep_until(next);
+  }
+  EXPECT_GT(contact_ticks, 100) << "the tool should have pressed the box";
+  const MultiRateStats st = multirate->stats();
+  EXPECT_GT(st.syncs, 50u);
+  EXPECT_GE(st.rebuilds, 2u) << "the tool moved 1.5 cm: the patch should have been built again";
+  EXPECT_EQ(allocations, 0) << "allocations on the loop's thread";
+  Command remove;
+  remove.type = Command::Type::kRemoveObject;
+  remove.instance_id = 1;
+  ASSERT_NE(engine.Submit(remove), 0u);
+  rt::TickInfo info;
+  info.tick = 1200;
+  info.dt = 1e-3;
+  info.deadline_ns = info.start_ns = rt::Loop::NowNs();
+  engine.TickOnce(info);
+  engine.DrainRetired();
 }
 
 }  // namespace

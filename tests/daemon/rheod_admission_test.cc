@@ -3,6 +3,7 @@
 // that keeps needing restores is stopped and reported instead of restored forever.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <thread>
@@ -54,13 +55,15 @@ std::string StoreBean(RheodProcess& d, double resolution) {
 }
 
 grpc::Status Add(RheodProcess& d, const std::string& id, v1::Integrator integrator,
-                 std::vector<std::pair<std::string, double>> overrides, v1::SceneObject* out) {
+                 std::vector<std::pair<std::string, double>> overrides, v1::SceneObject* out,
+                 v1::MultiRateMode multi_rate = v1::MULTI_RATE_MODE_AUTO) {
   auto scene = v1::SceneService::NewStub(d.channel());
   grpc::ClientContext ctx;
   SetDeadline(ctx, 60s);
   v1::AddToSceneRequest add;
   add.set_object_id(id);
   add.set_integrator(integrator);
+  add.set_multi_rate(multi_rate);
   for (auto& [name, value] : overrides) {
     auto* o = add.add_overrides();
     o->set_name(name);
@@ -106,7 +109,7 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
   const std::string id = StoreBean(d, 0.0);
   ASSERT_FALSE(id.empty());
   v1::SceneObject so;
-  grpc::Status s = Add(d, id, v1::INTEGRATOR_UNSPECIFIED, {}, &so);
+  grpc::Status s = Add(d, id, v1::INTEGRATOR_UNSPECIFIED, {}, &so, v1::MULTI_RATE_MODE_OFF);
   ASSERT_TRUE(s.ok()) << s.error_message();
   EXPECT_EQ(so.integrator(), v1::INTEGRATOR_IMPLICIT);
   EXPECT_GT(so.predicted_tick_us(), 0.0);
@@ -137,10 +140,11 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
   EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
   EXPECT_NE(s.error_message().find("16 substeps"), std::string::npos) << s.error_message();
 
-  // A finer mesh of the same bean: refused by cost, with the other object counted.
+  // A finer mesh of the same bean, multi-rate stepping declined: refused by cost, with the
+  // other object counted.
   const std::string fine = StoreBean(d, 0.004);
   ASSERT_FALSE(fine.empty());
-  s = Add(d, fine, v1::INTEGRATOR_IMPLICIT, {}, &refused);
+  s = Add(d, fine, v1::INTEGRATOR_IMPLICIT, {}, &refused, v1::MULTI_RATE_MODE_OFF);
   EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
   EXPECT_NE(s.error_message().find("the rest of the scene takes"), std::string::npos)
       << s.error_message();
@@ -162,6 +166,48 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
       << "before: " << before << " ticks/s (" << before_detail << "); after: " << after
       << " ticks/s (" << detail << ")";
   EXPECT_EQ(Status(d).loop().predicted_sim_us(), so.predicted_tick_us());
+
+  // By default the fine bean is not refused: it runs multi-rate (the nodes nearest the press
+  // point every tick, the whole every 10 ticks on its own thread), and the loop keeps its rate.
+  v1::SceneObject mr;
+  s = Add(d, fine, v1::INTEGRATOR_IMPLICIT, {}, &mr);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  ASSERT_TRUE(mr.has_multi_rate());
+  EXPECT_EQ(mr.multi_rate().period_ticks(), 10u);
+  EXPECT_GT(mr.multi_rate().patch_inner_nodes(), 0u);
+  EXPECT_LE(mr.multi_rate().patch_inner_nodes(), 64u);
+  EXPECT_GT(mr.multi_rate().predicted_whole_step_ms(), 0.0);
+  EXPECT_LT(mr.predicted_tick_us() + so.predicted_tick_us(), Status(d).loop().sim_budget_us());
+  // A second one is refused: each whole takes a core.
+  v1::SceneObject second;
+  s = Add(d, fine, v1::INTEGRATOR_IMPLICIT, {}, &second);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
+  EXPECT_NE(s.error_message().find("one object at a time runs multi-rate"), std::string::npos)
+      << s.error_message();
+  const double with_mr = LoopTickRate(d, 3s, &detail);
+  EXPECT_TRUE(KeepsItsRate(with_mr, before))
+      << "before: " << before << " ticks/s; with the multi-rate object: " << with_mr << " ticks/s ("
+      << detail << ")";
+  grpc::ClientContext g2;
+  SetDeadline(g2);
+  ASSERT_TRUE(scene->GetScene(&g2, {}, &sc).ok());
+  ASSERT_EQ(sc.objects_size(), 2);
+  for (const auto& o : sc.objects()) {
+    if (o.instance_id() != mr.instance_id()) continue;
+    // The whole's 10 ms steps of this 15k-tet bean take several times their period on this
+    // machine (the CG needs more iterations at longer substeps), so the whole runs behind real
+    // time; it still steps, and says by how much it is behind.
+    const v1::MultiRate& m = o.multi_rate();
+    std::printf("multi-rate bean: %s\n", m.ShortDebugString().c_str());
+    EXPECT_GE(m.syncs(), 3u) << m.DebugString();
+    EXPECT_GE(m.whole_substeps(), 4u);
+    EXPECT_GT(m.whole_step_ms(), 0.0);
+    if (m.whole_step_ms() > m.period_ticks()) {
+      EXPECT_GT(m.whole_lag_ms(), 0.0) << m.DebugString();
+      EXPECT_GT(m.late_ticks(), 0u) << m.DebugString();
+    }
+    EXPECT_FALSE(o.unstable());
+  }
 }
 
 TEST(RheodAdmission, AnObjectThatKeepsExplodingIsStoppedAndReportedNotRestoredForever) {

@@ -58,6 +58,24 @@ void FillSceneObject(const SceneEntry& e, bool sleeping, bool unstable, v1::Scen
   out->set_sleeping(sleeping);
   out->set_unstable(unstable);
   out->set_predicted_tick_us(e.cost.ns * 1e-3);
+  if (e.multirate) {
+    // Under the scene's mutation mutex (the object is not removed meanwhile).
+    const MultiRateStats st = e.multirate->stats();
+    v1::MultiRate* m = out->mutable_multi_rate();
+    m->set_period_ticks(static_cast<uint32_t>(e.multirate_period));
+    m->set_predicted_whole_step_ms(e.whole_cost.ns * 1e-6);
+    m->set_patch_inner_nodes(static_cast<uint32_t>(st.patch_inner_nodes));
+    m->set_patch_tets(static_cast<uint32_t>(st.patch_tets));
+    m->set_syncs(st.syncs);
+    m->set_late_ticks(st.late_ticks);
+    m->set_whole_step_ms(static_cast<double>(st.whole_step_ns) * 1e-6);
+    m->set_whole_step_max_ms(static_cast<double>(st.whole_step_max_ns) * 1e-6);
+    m->set_whole_window_ms(st.whole_window_s * 1e3);
+    m->set_patch_rebuilds(st.rebuilds);
+    m->set_whole_restores(st.whole_restores);
+    m->set_whole_lag_ms(st.whole_lag_s * 1e3);
+    m->set_whole_substeps(static_cast<uint32_t>(st.whole_substeps));
+  }
 }
 
 void FillPercentiles(const rt::Histogram& h, v1::Percentiles* out) {

@@ -127,6 +127,7 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
       os->set_kinetic_energy(fo.kinetic_energy);
       os->set_restores(fo.restores);
       os->set_unstable(fo.unstable);
+      os->set_multi_rate(fo.multi_rate);
       const float* p = f.positions.data() + 3u * fo.first;
       os->set_volume(EnclosedVolume(p, fo.vertex_count, entry->triangles));
       if (request->positions() && request->quantized())

@@ -209,12 +209,14 @@ grpc::Status ObjectServiceImpl::Replay(const StoredObject& stored,
   if (request.add_to_scene()) {
     // In the scene already (the first attempt got that far): that instance; else add it now.
     bool found = false;
+    std::unique_lock<std::mutex> mutation(ctx_.scene->mutation_mutex());  // FillSceneObject
     for (const auto& e : ctx_.scene->All())
       if (e->object_id == stored.id) {
         FillSceneObject(*e, false, false, done.mutable_scene_object());
         found = true;
         break;
       }
+    mutation.unlock();  // AddObjectToScene takes it
     if (!found) {
       v1::AddToSceneRequest add;
       add.set_object_id(stored.id);

@@ -10,7 +10,9 @@
 #include <vector>
 
 #include "common/geometry.h"
+#include "daemon/loop/multirate_object.h"
 #include "sim/cost.h"
+#include "sim/multirate.h"
 #include "sim/params.h"
 #include "sim/sim.h"
 
@@ -30,6 +32,13 @@ struct SceneEntry {
   // Owned by the loop; valid while this entry is in the registry, and used only under the
   // registry's mutation mutex, which RemoveFromScene also holds.
   const sim::SimObject* object = nullptr;
+  // Stepped multi-rate (the loop's MultiRateObject; object is its whole): same lifetime and
+  // locking as `object`. `cost` is then the patch's tick; the patch built at admission stays
+  // here, never stepped, for the cost of later parameter changes.
+  const MultiRateObject* multirate = nullptr;
+  std::shared_ptr<const sim::Patch> patch_probe;
+  int32_t multirate_period = 0;  // ticks per whole step
+  sim::TickCost whole_cost;      // one whole step
 };
 
 /// Mutex-protected; never touched by the loop.
@@ -69,6 +78,13 @@ class SceneRegistry {
     for (auto& [id, e] : entries_)
       if (id != except) ns += e->cost.ns;
     return ns;
+  }
+  /// Objects stepped multi-rate.
+  int multirate_count() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    int n = 0;
+    for (auto& [id, e] : entries_) n += e->multirate != nullptr;
+    return n;
   }
   uint64_t total_vertices() const {
     std::lock_guard<std::mutex> lock(mutex_);

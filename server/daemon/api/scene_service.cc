@@ -1,12 +1,15 @@
 // SceneService: objects into and out of the loop, material parameters, run control.
 #include <algorithm>
+#include <cmath>
 
 #include "common/format.h"
 #include "daemon/api/convert.h"
 #include "daemon/api/grpc_status.h"
 #include "daemon/api/limits.h"
 #include "daemon/api/services.h"
+#include "daemon/device/tool_placement.h"
 #include "sim/cost.h"
+#include "sim/multirate.h"
 #include "sim/sim.h"
 
 namespace rheo::daemon {
@@ -42,6 +45,13 @@ Status ApplyParameterList(sim::Parameters& p,
   }
   return Status::Ok();
 }
+
+// Ticks per whole step of a multi-rate object when its whole keeps up (100 Hz at a 1 ms tick):
+// the hand force within 0.27-0.44 N RMS of the full solve's at 4.6k tets
+// (bench/sim/results/multirate.txt, N = 10).
+constexpr int32_t kMultiRatePeriod = 10;
+// Each multi-rate object's whole steps on a thread of its own.
+constexpr int kMaxMultiRateObjects = 1;
 
 double TickSeconds(const DaemonContext& ctx) {
   return static_cast<double>(ctx.engine->loop().options().period_ns) * 1e-9;
@@ -81,7 +91,10 @@ grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetScene
   if (!entries.empty())
     snap = ctx_.hub->WaitNewer(0, std::chrono::steady_clock::now() + std::chrono::seconds(1),
                                [] { return false; });
+  // FillSceneObject reads a multi-rate object's counters: no object leaves the scene meanwhile.
+  std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
   for (const auto& e : entries) {
+    if (!ctx_.scene->Find(e->instance_id)) continue;  // removed since
     bool sleeping = false, unstable = false;
     for (uint32_t i = 0; snap && i < snap->frame.object_count; ++i)
       if (snap->frame.objects[i].instance_id == e->instance_id) {
@@ -165,10 +178,36 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
       cost = implicit;
     }
   }
-  if (Status s =
-          CheckFitsTheTick(ctx_, object->model(), *cost, integrator, others_ns, "this object");
-      !s.ok())
-    return ToGrpc(s.error());
+  // Multi-rate: by default only when the full step does not fit the tick.
+  const v1::MultiRateMode mode = req->multi_rate();
+  if (mode != v1::MULTI_RATE_MODE_AUTO && mode != v1::MULTI_RATE_MODE_OFF &&
+      mode != v1::MULTI_RATE_MODE_ON)
+    return ToGrpc(InvalidArgument("multi_rate must be AUTO, OFF or ON"));
+  const bool fits = cost->ns + others_ns <= ctx_.sim_budget_ns;
+  bool multi = mode == v1::MULTI_RATE_MODE_ON || (mode == v1::MULTI_RATE_MODE_AUTO && !fits);
+  if (multi && integrator == sim::Integrator::kSymplecticEuler) {
+    if (req->integrator() == v1::INTEGRATOR_UNSPECIFIED) {
+      sim::PreparedParameters prepared;
+      auto implicit = predict(sim::Integrator::kImplicitEuler, &prepared);
+      if (!implicit.ok()) return ToGrpc(implicit.error());
+      integrator = sim::Integrator::kImplicitEuler;
+      object->SetIntegrator(integrator);
+      if (Status s = object->SetParameters(prepared); !s.ok()) return ToGrpc(s.error());
+      cost = implicit;
+    } else if (mode == v1::MULTI_RATE_MODE_ON) {
+      return ToGrpc(InvalidArgument(
+          "multi_rate ON needs the implicit integrator (an explicit whole step over many ticks "
+          "costs as many substeps as the ticks it covers); ask for INTEGRATOR_IMPLICIT"));
+    } else {
+      multi = false;  // asked for the explicit integrator: refused by cost below
+    }
+  }
+  if (!multi) {
+    if (Status s =
+            CheckFitsTheTick(ctx_, object->model(), *cost, integrator, others_ns, "this object");
+        !s.ok())
+      return ToGrpc(s.error());
+  }
 
   // Placement: the rest shape's bounding-box centre goes to `position`; by default the object
   // stands centred over the origin, 2 cm above the floor.
@@ -204,6 +243,55 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
     contact = std::move(attached->contact);
   }
 
+  // Multi-rate: the patch around the press point is built here to predict the loop's part; the
+  // whole's step is predicted for its period.
+  std::unique_ptr<MultiRateObject> multirate;
+  std::shared_ptr<const sim::Patch> probe;
+  sim::TickCost whole_cost;
+  const sim::TickCost full_cost = *cost;
+  if (multi) {
+    if (ctx_.scene->multirate_count() >= kMaxMultiRateObjects)
+      return ToGrpc(ResourceExhausted(
+          "one object at a time runs multi-rate (its whole steps on a core of its own) and the "
+          "scene has one; remove it first, or mesh this object coarser so that it fits the tick "
+          "(" +
+          Fixed(cost->ns * 1e-6, 2) + " ms of the " + Fixed(ctx_.sim_budget_ns * 1e-6, 2) +
+          " ms budget)"));
+    const double tick = TickSeconds(ctx_);
+    sim::PatchOptions po;
+    po.tick = tick;
+    // The whole's substeps are the loop's own tick, the step every preset is tuned for: dropped
+    // onto the floor, the 15k-tet bean's whole restored 51 times in 0.6 s with 2 ms substeps
+    // (hard-jelly; 0 with 1 ms), 52 with 2.5 ms (soft-jelly; 0 with 2 ms). So the whole costs
+    // what the full solve would, on a core of its own, and runs behind real time when that is
+    // more than the tick (MultiRate.whole_lag_ms).
+    po.whole_substep = tick;
+    const Vec3 focus = PressPoint(triangles, object->positions());
+    auto patch = sim::Patch::Build(*object, focus, po);
+    if (!patch.ok()) return ToGrpc(patch.error());
+    probe = std::make_shared<const sim::Patch>(std::move(*patch));
+    auto patch_prepared = probe->object().Prepare(object->parameters(), integrator, tick);
+    if (!patch_prepared.ok()) return ToGrpc(patch_prepared.error());
+    *cost = sim::PredictTickCost(probe->object().model(), *patch_prepared, integrator, tick,
+                                 ctx_.tick_cost);
+    if (Status s = CheckFitsTheTick(ctx_, probe->object().model(), *cost, integrator, others_ns,
+                                    "this object's patch (multi-rate)");
+        !s.ok())
+      return ToGrpc(s.error());
+    // The whole's step over the period, in substeps of at most po.whole_substep.
+    const double period_s = kMultiRatePeriod * tick;
+    sim::Parameters wp = object->parameters();
+    wp.implicit_substeps = std::max<double>(sim::SimObject::ImplicitSubsteps(wp, tick),
+                                            std::ceil(period_s / po.whole_substep - 1e-9));
+    auto whole_prepared = object->Prepare(wp, integrator, period_s);
+    if (!whole_prepared.ok()) return ToGrpc(whole_prepared.error());
+    whole_cost = sim::PredictTickCost(object->model(), *whole_prepared, integrator, period_s,
+                                      ctx_.tick_cost);
+    auto created_mr = MultiRateObject::Create(std::move(object), kMultiRatePeriod, po, focus);
+    if (!created_mr.ok()) return ToGrpc(created_mr.error());
+    multirate = std::move(created_mr).value();
+  }
+
   auto entry = std::make_shared<SceneEntry>();
   entry->instance_id = ctx_.scene->NextId();
   entry->object_id = req->object_id();
@@ -213,7 +301,11 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   entry->vertex_count = static_cast<uint32_t>(n);
   entry->position = target;
   entry->cost = *cost;
-  entry->object = object.get();
+  entry->object = multirate ? &multirate->whole() : object.get();
+  entry->multirate = multirate.get();
+  entry->patch_probe = probe;
+  entry->multirate_period = multirate ? kMultiRatePeriod : 0;
+  entry->whole_cost = multirate ? whole_cost : full_cost;
   entry->triangles = std::move(triangles);
   ctx_.scene->Put(entry);
 
@@ -221,6 +313,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   c.type = Command::Type::kAddObject;
   c.instance_id = entry->instance_id;
   c.object = object.get();
+  c.multirate = multirate.get();
   c.contact = contact.get();
   uint64_t seq = ctx_.engine->Submit(c);
   if (seq == 0) {
@@ -228,6 +321,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
     return QueueFull();
   }
   object.release();  // the loop owns it now
+  multirate.release();
   contact.release();
   if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("object");
   FillSceneObject(*entry, false, false, out);
@@ -283,6 +377,20 @@ grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
     }
     if (Status s = ApplyParameterList(next->params, req->parameters()); !s.ok())
       return ToGrpc(s.error());
+    if (next->patch_probe) {
+      // Multi-rate: the loop's part is the patch; the whole's thread recomputes what the
+      // parameters imply for the whole when it takes them in, so only they travel.
+      const sim::SimObject& patch = next->patch_probe->object();
+      auto ready = patch.Prepare(next->params, next->integrator, tick);
+      if (!ready.ok()) return ToGrpc(ready.error());
+      next->cost =
+          sim::PredictTickCost(patch.model(), *ready, next->integrator, tick, ctx_.tick_cost);
+      sim::PreparedParameters only;
+      only.params = next->params;
+      prepared.push_back(std::move(only));
+      updated.push_back(std::move(next));
+      continue;
+    }
     auto ready = next->object->Prepare(next->params, next->integrator, tick);
     if (!ready.ok()) return ToGrpc(ready.error());
     next->cost =
@@ -300,7 +408,9 @@ grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
   for (const auto& u : updated) {
     const double others = after_ns;
     after_ns += u->cost.ns;
-    if (Status s = CheckFitsTheTick(ctx_, u->object->model(), u->cost, u->integrator, others,
+    const sim::Model& model =
+        u->patch_probe ? u->patch_probe->object().model() : u->object->model();
+    if (Status s = CheckFitsTheTick(ctx_, model, u->cost, u->integrator, others,
                                     updated.size() == 1 ? "this change" : "these changes");
         !s.ok())
       return ToGrpc(s.error());

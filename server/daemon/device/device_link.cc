@@ -177,13 +177,15 @@ void DeviceLink::Apply(const Command& c) {
 }
 
 void DeviceLink::Forget(const EngineSlot& slot) {
-  if (slot.object == contact_object_) {
+  if (slot.object == contact_object_ && slot.multirate == contact_multirate_) {
     contact_object_ = nullptr;
+    contact_multirate_ = nullptr;
     forced_count_ = 0;
   }
 }
 
 void DeviceLink::ReleaseContact() {
+  if (contact_multirate_) contact_multirate_->ClearLoads();
   if (contact_object_)
     for (int i = 0; i < forced_count_; ++i)
       contact_object_->SetExternalForce(forced_nodes_[i], Vec3::Zero());
@@ -234,9 +236,10 @@ void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, Too
       target = &s;
       break;
     }
-  if (!target || target->object != contact_object_) {
+  if (!target || target->object != contact_object_ || target->multirate != contact_multirate_) {
     ReleaseContact();
     contact_object_ = target ? target->object : nullptr;
+    contact_multirate_ = target ? target->multirate : nullptr;
   }
   drivers::Wrench command;
   Vec3 object_force = Vec3::Zero();
@@ -245,7 +248,7 @@ void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, Too
   if (target) {
     auto& r = static_cast<RendererContact*>(target->contact)->renderer;
     t_.stiffness = r.effective_stiffness();
-    auto o = r.Update({position, tool.linear_velocity}, target->object->positions(), info.dt);
+    auto o = r.Update({position, tool.linear_velocity}, target->positions(), info.dt);
     if (o.ok()) {
       command.force = o->wrench.force;
       command.torque = o->wrench.torque;
@@ -254,13 +257,27 @@ void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, Too
       ReleaseContact();
       // The object feels the tool only while the device displays its reaction.
       if (device_->status().faults == drivers::kFaultNone) {
-        for (const haptics::NodeForce& nf : o->node_forces) {
-          if (forced_count_ >= static_cast<int>(forced_nodes_.size())) break;
-          target->object->SetExternalForce(nf.node, nf.force);
-          forced_nodes_[forced_count_++] = nf.node;
-          object_force += nf.force;
+        if (MultiRateObject* mr = target->multirate) {
+          // The whole's step takes many ticks' loads at once: each goes with its share of the
+          // coupling's stiffness, so that the whole's implicit step holds the coupling as the
+          // spring it is (sim/multirate.h, ForceWindow::ApplyAverage).
+          double norm_sum = 0.0;
+          for (const haptics::NodeForce& nf : o->node_forces) norm_sum += nf.force.norm();
+          for (const haptics::NodeForce& nf : o->node_forces) {
+            const double k = norm_sum > 0.0 ? t_.stiffness * nf.force.norm() / norm_sum : 0.0;
+            if (!mr->AddLoad({nf.node, nf.force, k})) break;
+            object_force += nf.force;
+          }
+        } else {
+          for (const haptics::NodeForce& nf : o->node_forces) {
+            if (forced_count_ >= static_cast<int>(forced_nodes_.size())) break;
+            target->object->SetExternalForce(nf.node, nf.force);
+            forced_nodes_[forced_count_++] = nf.node;
+            object_force += nf.force;
+          }
         }
       }
+      if (MultiRateObject* mr = target->multirate) mr->SetFocus(proxy);
     } else {
       ++t_.renderer_errors;
       ReleaseContact();

@@ -121,9 +121,10 @@ class DeviceLink final : public TickDevice {
   std::atomic<bool> estop_{false};
 
   // Loop thread.
-  Vec3 origin_ = Vec3::Zero();                // scene position of the device frame's origin [m]
-  sim::SimObject* contact_object_ = nullptr;  // object holding node forces from the tool
-  std::array<int32_t, 24> forced_nodes_{};    // nodes with a tool force on contact_object_
+  Vec3 origin_ = Vec3::Zero();                    // scene position of the device frame's origin [m]
+  sim::SimObject* contact_object_ = nullptr;      // object holding node forces from the tool
+  MultiRateObject* contact_multirate_ = nullptr;  // or the multi-rate object holding them
+  std::array<int32_t, 24> forced_nodes_{};        // nodes with a tool force on contact_object_
   int forced_count_ = 0;
   int healthy_ticks_ = 0;
   bool dog_armed_ = false;

@@ -16,6 +16,7 @@ template <typename Owner>
 void FreeOwned(const Owner& o) {
   delete o.contact;
   delete o.object;
+  delete o.multirate;
   delete o.params;
 }
 }  // namespace
@@ -25,6 +26,7 @@ Engine::~Engine() {
   for (int i = 0; i < slot_count_; ++i) {
     delete slots_[i].contact;
     delete slots_[i].object;
+    delete slots_[i].multirate;
   }
   slot_count_ = 0;
   DrainRetired();
@@ -87,18 +89,24 @@ void Engine::Apply(const Command& c) {
     case Command::Type::kReset:
       sim_ticks_ = 0;
       for (int i = 0; i < slot_count_; ++i) {
-        slots_[i].object->Reset();
+        if (slots_[i].multirate) {
+          slots_[i].multirate->RequestReset();
+        } else {
+          slots_[i].object->Reset();
+        }
         MarkStable(slots_[i]);
       }
       ++scene_revision_;
       break;
     case Command::Type::kStep: step_once_ = true; break;
     case Command::Type::kAddObject:
-      if (c.object && slot_count_ < kMaxSceneObjects && FindSlot(c.instance_id) < 0) {
-        slots_[slot_count_++] = EngineSlot{c.instance_id, c.object, c.contact};
+      if ((c.object != nullptr) != (c.multirate != nullptr) && slot_count_ < kMaxSceneObjects &&
+          FindSlot(c.instance_id) < 0) {
+        slots_[slot_count_++] = EngineSlot{c.instance_id, c.object, c.contact, c.multirate};
         ++scene_revision_;
       } else {
-        Retire({c.object, nullptr, c.contact});  // the service checked capacity; never leak
+        // The service checked capacity; never leak.
+        Retire({c.object, nullptr, c.contact, c.multirate});
       }
       break;
     case Command::Type::kRemoveObject: {
@@ -106,7 +114,7 @@ void Engine::Apply(const Command& c) {
       if (i >= 0) {
         if (device_) device_->Forget(slots_[i]);
         MarkStable(slots_[i]);
-        Retire({slots_[i].object, nullptr, slots_[i].contact});
+        Retire({slots_[i].object, nullptr, slots_[i].contact, slots_[i].multirate});
         slots_[i] = slots_[slot_count_ - 1];
         --slot_count_;
         ++scene_revision_;
@@ -117,6 +125,12 @@ void Engine::Apply(const Command& c) {
       int i = FindSlot(c.instance_id);
       // The passes over the elements were done by SimObject::Prepare on the service's thread;
       // this copies the result in without allocating.
+      if (i >= 0 && c.params && slots_[i].multirate) {
+        // Taken in by the whole's thread at its next step (and freed there).
+        Retire({nullptr, slots_[i].multirate->RequestParameters(c.params)});
+        MarkStable(slots_[i]);
+        break;
+      }
       if (i >= 0 && c.params) {
         (void)slots_[i].object->SetParameters(*c.params);
         MarkStable(slots_[i]);  // new parameters get a new chance
@@ -145,7 +159,8 @@ void Engine::Tick(const rt::TickInfo& info) {
     for (int i = 0; i < slot_count_; ++i) {
       EngineSlot& slot = slots_[i];
       if (slot.unstable) continue;
-      const sim::StepResult r = slot.object->Step(info.dt);
+      const sim::StepResult r =
+          slot.multirate ? slot.multirate->Tick(info.dt) : slot.object->Step(info.dt);
       if (!r.restored) continue;
       restores_.fetch_add(1, std::memory_order_relaxed);
       if (info.tick - slot.restore_window_start >= kRestoreWindowTicks) {
@@ -183,13 +198,13 @@ void Engine::Tick(const rt::TickInfo& info) {
   // Positions: capacity was reserved at start and the service never admits more vertices than
   // that, so resize() below never allocates.
   size_t total = 0;
-  for (int i = 0; i < slot_count_; ++i) total += slots_[i].object->positions().size();
+  for (int i = 0; i < slot_count_; ++i) total += slots_[i].positions().size();
   f.positions.resize(std::min(total, f.positions.capacity() / 3) * 3);
   uint32_t first = 0;
   f.object_count = 0;
   for (int i = 0; i < slot_count_; ++i) {
-    const sim::SimObject& o = *slots_[i].object;
-    auto x = o.positions();
+    const EngineSlot& slot = slots_[i];
+    auto x = slot.positions();
     if ((first + x.size()) * 3 > f.positions.size()) break;
     float* out = f.positions.data() + 3u * first;
     for (size_t k = 0; k < x.size(); ++k) {
@@ -197,13 +212,17 @@ void Engine::Tick(const rt::TickInfo& info) {
       out[3 * k + 1] = static_cast<float>(x[k].y());
       out[3 * k + 2] = static_cast<float>(x[k].z());
     }
-    f.objects[f.object_count++] = FrameObject{slots_[i].instance_id,
-                                              first,
-                                              static_cast<uint32_t>(x.size()),
-                                              o.sleeping(),
-                                              static_cast<uint64_t>(o.events().restores),
-                                              o.kinetic_energy(),
-                                              slots_[i].unstable};
+    const MultiRateObject* mr = slot.multirate;
+    const sim::SimObject* o = slot.object;
+    f.objects[f.object_count++] =
+        FrameObject{slot.instance_id,
+                    first,
+                    static_cast<uint32_t>(x.size()),
+                    mr ? mr->sleeping() : o->sleeping(),
+                    mr ? mr->restores() : static_cast<uint64_t>(o->events().restores),
+                    mr ? mr->kinetic_energy() : o->kinetic_energy(),
+                    slot.unstable,
+                    mr != nullptr};
     first += static_cast<uint32_t>(x.size());
   }
   f.published_unix_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(

@@ -9,6 +9,7 @@
 #include <span>
 #include <vector>
 
+#include "daemon/loop/multirate_object.h"
 #include "daemon/loop/seq_slot.h"
 #include "rt/command_queue.h"
 #include "rt/loop.h"
@@ -37,7 +38,7 @@ struct Command {
     kResume,
     kReset,
     kStep,
-    kAddObject,        // object: ownership passes to the loop
+    kAddObject,        // object or multirate: ownership passes to the loop
     kRemoveObject,     // instance_id
     kSetParameters,    // instance_id, params (prepared off the loop): applied, then retired
     kDeviceCalibrate,  // the device link calibrates on the loop thread
@@ -48,6 +49,7 @@ struct Command {
   uint64_t seq = 0;  // assigned by Engine::Submit; the loop acknowledges it in applied_seq
   uint32_t instance_id = 0;
   sim::SimObject* object = nullptr;
+  MultiRateObject* multirate = nullptr;  // kAddObject: instead of `object`, stepped multi-rate
   sim::PreparedParameters* params = nullptr;
   ObjectContact* contact = nullptr;  // kAddObject: ownership passes to the loop (may be null)
   std::array<double, 3> vec{};       // kSetToolOrigin [m]
@@ -58,6 +60,7 @@ struct Retired {
   sim::SimObject* object = nullptr;
   sim::PreparedParameters* params = nullptr;  // holds the object's previous tet flags
   ObjectContact* contact = nullptr;
+  MultiRateObject* multirate = nullptr;  // its destructor joins the whole's thread
 };
 
 /// The haptic tool as the loop saw it in one tick: plain data, published in every frame and in a
@@ -98,11 +101,18 @@ struct ToolTelemetry {
   uint64_t input_seq = 0;  // network tool: the last input sequence number the loop used
 };
 
-/// One scene object as the loop holds it.
+/// One scene object as the loop holds it: a SimObject stepped whole every tick, or (`multirate`
+/// set, `object` null) one too fine for that, stepped multi-rate.
 struct EngineSlot {
   uint32_t instance_id = 0;
   sim::SimObject* object = nullptr;
   ObjectContact* contact = nullptr;
+  MultiRateObject* multirate = nullptr;
+
+  /// Node positions to render and publish.
+  std::span<const Vec3> positions() const {
+    return multirate ? multirate->positions() : object->positions();
+  }
   // An object whose state keeps going non-finite or exploding is stopped (no longer stepped,
   // shown in its last good state) after kRestoresBeforeStop restores within kRestoreWindowTicks,
   // until its parameters change or the scene is reset: restoring it forever costs every tick.
@@ -137,6 +147,7 @@ struct FrameObject {
   uint64_t restores = 0;        // recoveries from a non-finite or exploding state so far
   double kinetic_energy = 0.0;  // [J]
   bool unstable = false;        // stopped after repeated restores (EngineSlot::unstable)
+  bool multi_rate = false;      // stepped multi-rate (MultiRateObject)
 };
 
 /// What the loop publishes every tick. Preallocated; the loop fills it without allocating.
