@@ -58,21 +58,19 @@ stop() {
   PIDS=()
 }
 
-# The loop's timing over one window: the status before and after, as JSON.
+# The loop's timing over one window: the status before and after, into $DATA/$1-a.json and -b.json.
 window() {
-  local a b
-  a=$("${ctl[@]}" status --json)
+  "${ctl[@]}" status --json >"$DATA/$1-a.json"
   sleep "$SECONDS_RUN"
-  b=$("${ctl[@]}" status --json)
-  printf '%s\n%s\n' "$a" "$b"
+  "${ctl[@]}" status --json >"$DATA/$1-b.json"
 }
 
 # The loop's percentiles cover a daemon's whole life: the idle run is one daemon, the press
 # another on the same data directory (the mesh made by the first, between its window and its end).
 start idle
 echo "# idle: ${SECONDS_RUN} s" >&2
-IDLE=$(window)
-IDLE_DEV=$("${ctl[@]}" device status --json)
+window idle
+"${ctl[@]}" device status --json >"$DATA/idle-dev.json"
 
 echo "# meshing $(basename "$SKETCH") at ${RESOLUTION} m" >&2
 t0=$(date +%s)
@@ -93,29 +91,28 @@ sleep 2
   done ) &
 PIDS+=($!)
 echo "# pressing: ${SECONDS_RUN} s" >&2
-PRESS_DEV0=$("${ctl[@]}" device status --json)
-PRESS=$(window)
-PRESS_DEV=$("${ctl[@]}" device status --json)
-SCENE=$("${ctl[@]}" scene show)
+"${ctl[@]}" device status --json >"$DATA/press-dev0.json"
+window press
+"${ctl[@]}" device status --json >"$DATA/press-dev.json"
+"${ctl[@]}" scene show >"$DATA/scene.json"
 stop
 
-python3 - "$tets" "$mesh_s" "$RESOLUTION" "$SECONDS_RUN" <<EOF
-import json, sys
-tets, mesh_s, res, secs = sys.argv[1:5]
-def two(s):
-    a, b = [json.loads(x) for x in s.strip().split("\n", 1)[0:1] + [s.strip().split("\n", 1)[1]]]
-    return a, b
-idle = two('''$IDLE''')
-press = two('''$PRESS''')
-idle_dev = json.loads('''$IDLE_DEV''')
-press_dev0 = json.loads('''$PRESS_DEV0''')
-press_dev = json.loads('''$PRESS_DEV''')
-scene = json.loads('''$SCENE''')
+python3 - "$tets" "$mesh_s" "$RESOLUTION" "$SECONDS_RUN" "$DATA" <<'EOF'
+import json, sys, os
+tets, mesh_s, res, secs, data = sys.argv[1:6]
+def load(name):
+    with open(os.path.join(data, name)) as f:
+        return json.load(f)
+idle = (load("idle-a.json"), load("idle-b.json"))
+press = (load("press-a.json"), load("press-b.json"))
+idle_dev, press_dev0, press_dev = load("idle-dev.json"), load("press-dev0.json"), load("press-dev.json")
+scene = load("scene.json")
 def diff(pair, key):
     return int(pair[1].get("loop", {}).get(key, 0)) - int(pair[0].get("loop", {}).get(key, 0))
 def pct(pair, section, key):
     return float(pair[1].get("loop", {}).get(section, {}).get(key, 0.0))
 print(f"# multi-rate press: {tets} tets ({res} m, meshed in {mesh_s} s), organ, implicit; {secs} s idle, then {secs} s pressed")
+print("# counts are over each window; percentiles over each daemon's life (idle: start + window; press: start, add, window)")
 print("| run   |  ticks | late | skipped | overruns | period p50 / p99 / p99.9 / max [us] | work p50 / p99 / p99.9 [us] | dev misses |")
 for label, pair, d0, d1 in (("idle", idle, None, idle_dev), ("press", press, press_dev0, press_dev)):
     c1 = d1.get("counters", {})
@@ -130,7 +127,7 @@ for o in scene.get("objects", []):
         print(f"# instance {o.get('instance_id')}: not multi-rate"); continue
     print(f"# multi-rate: patch {m.get('patch_inner_nodes')} nodes / {m.get('patch_tets')} tets at {float(o.get('predicted_tick_us', 0)):.0f} us predicted; "
           f"whole every {m.get('period_ticks')} ticks, predicted {float(m.get('predicted_whole_step_ms', 0)):.1f} ms a step, "
-          f"last {float(m.get('whole_step_ms', 0)):.1f} ms (max {float(m.get('whole_step_max_ms', 0)):.1f}) covering {float(m.get('whole_window_ms', 0)):.1f} ms; "
+          f"last {float(m.get('whole_step_ms', 0)):.1f} ms (max {float(m.get('whole_step_max_ms', 0)):.1f}), its load averaged over {float(m.get('whole_window_ms', 0)):.1f} ms; "
           f"{m.get('syncs', 0)} syncs, {m.get('late_ticks', 0)} ticks with the whole late, {m.get('patch_rebuilds', 0)} patches, "
           f"{m.get('whole_restores', 0)} whole restores ({m.get('whole_substeps', 0)} substeps a step now); the whole {float(m.get('whole_lag_ms', 0)):.0f} ms behind real time")
 EOF
