@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
   rheoctl::AddParamCommand(app, g);
   rheoctl::AddDeviceCommand(app, g);
   rheoctl::AddContourCommand(app, g);
+  rheoctl::AddRecordCommand(app, g);
   rheoctl::AddTokenCommands(app, g);
   try {
     app.parse(argc, argv);

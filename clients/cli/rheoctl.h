@@ -67,6 +67,7 @@ void AddSceneCommand(CLI::App& app, const Global& g);    // cmd_scene.cc
 void AddParamCommand(CLI::App& app, const Global& g);    // cmd_param.cc
 void AddDeviceCommand(CLI::App& app, const Global& g);   // cmd_device.cc
 void AddContourCommand(CLI::App& app, const Global& g);  // cmd_contour.cc
+void AddRecordCommand(CLI::App& app, const Global& g);   // cmd_record.cc
 void AddTokenCommands(CLI::App& app, const Global& g);   // cmd_token.cc: token, audit, whoami
 
 }  // namespace rheoctl

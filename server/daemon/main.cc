@@ -30,11 +30,14 @@
 #include <thread>
 
 #include "daemon/api/decode_errors.h"
+#include "daemon/api/recording_service.h"
 #include "daemon/api/services.h"
 #include "daemon/loop/engine.h"
 #include "daemon/loop/frame_hub.h"
 #include "daemon/loop/tick_cost.h"
+#include "daemon/loop/tick_ring.h"
 #include "daemon/net/tcp_relay.h"
+#include "daemon/record/recorder.h"
 #include "daemon/web/gateway.h"
 
 #ifndef RHEO_VERSION
@@ -67,6 +70,7 @@ namespace {
 struct Flags {
   std::string listen = "127.0.0.1:50051";
   std::string data_dir;
+  std::string recording_dir;  // "": DATA_DIR/recordings
   std::string device = "none";
   std::string device_config;  // "": the X5 frame file from the install or the source tree
   std::string device_port;
@@ -207,6 +211,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--data-dir", flags.data_dir, "where objects and recordings are stored")
       ->default_str("$XDG_DATA_HOME/rheo");
+  app.add_option("--recording-dir", flags.recording_dir,
+                 "where session recordings (MCAP files) are written")
+      ->default_str("DATA_DIR/recordings");
   app.add_option("--device", flags.device,
                  "haptic device: none, sim-spidar-g (the emulator behind the real driver), "
                  "spidar-g (hardware on --device-port) or network (a client's ToolStream)")
@@ -449,6 +456,10 @@ int main(int argc, char** argv) {
   eopts.loop.lock_memory = flags.realtime;
   Engine engine(eopts);
   if (device) engine.AttachDevice(device.get());
+  // Session recording: the loop offers each tick to this ring while a recording runs (about
+  // 4 MiB, allocated here, before the loop starts and locks its memory).
+  auto tick_ring = std::make_unique<TickRing>();
+  engine.AttachTickRing(tick_ring.get());
   // Admission by cost: the tick's cost on this machine, measured before the loop starts (on a
   // quiet core rather than beside it).
   const rheo::sim::CostCoefficients tick_cost = rheo::daemon::MeasureTickCost();
@@ -491,6 +502,29 @@ int main(int argc, char** argv) {
   ctx.sim_budget_ns = flags.sim_budget_percent > 0.0
                           ? flags.sim_budget_percent * 1e-2 * 1e9 / flags.rate_hz
                           : std::numeric_limits<double>::infinity();
+  // The session recorder: its files are listed (each opened with the MCAP reader) before the
+  // server starts, so ListRecordings sees them from the first call.
+  RecorderOptions recorder_options;
+  recorder_options.dir = flags.recording_dir.empty()
+                             ? (std::filesystem::path(flags.data_dir) / "recordings").string()
+                             : flags.recording_dir;
+  recorder_options.library = std::string("rheod ") + RHEO_VERSION;
+  recorder_options.fill_frame = [&ctx](const LoopFrame& f, bool topology, rheo::v1::Frame* out) {
+    FillFrame(ctx, f, {topology, /*positions=*/true, /*quantized=*/false}, out);
+  };
+  recorder_options.fill_loop_status = [&ctx](rheo::v1::LoopStatus* out) {
+    FillLoopStatus(ctx, out);
+  };
+  Recorder recorder(engine, hub, *tick_ring, recorder_options);
+  const auto found = recorder.Load();
+  if (!found.ok()) {
+    spdlog::error("{}; choose another --recording-dir", found.error().message);
+    hub.Stop();
+    engine.Stop();
+    return 1;
+  }
+  spdlog::info("recordings in {}: {}", recorder_options.dir, *found);
+  ctx.recorder = &recorder;
   spdlog::info(
       "tick cost model: {:.2f} ns per element and explicit substep, {:.2f} per implicit substep, "
       "{:.2f} per CG iteration; {}",
@@ -505,6 +539,7 @@ int main(int argc, char** argv) {
   SceneServiceImpl scene_service(ctx);
   ObjectServiceImpl object_service(ctx);
   DeviceServiceImpl device_service(ctx);
+  RecordingServiceImpl recording_service(ctx);
 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
@@ -561,11 +596,14 @@ int main(int argc, char** argv) {
   builder.RegisterService(&scene_service);
   builder.RegisterService(&object_service);
   builder.RegisterService(&device_service);
+  builder.RegisterService(&recording_service);
   {
     // Undecodable requests: INVALID_ARGUMENT naming the expected message, not an empty INTERNAL.
     std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> chain;
     chain.push_back(std::make_unique<DecodeErrorInterceptorFactory>());
     chain.push_back(std::make_unique<AuditInterceptorFactory>(store->get()));
+    // Scene and device commands into the running recording (/commands).
+    chain.push_back(std::make_unique<RecordingInterceptorFactory>(&recorder));
     builder.experimental().SetInterceptorCreators(std::move(chain));
   }
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
@@ -707,7 +745,12 @@ int main(int argc, char** argv) {
     insecure_warning.cancel();
     idle_reaper.cancel();
     if (relay) relay->Stop();
-    jobs.CancelAll();              // running mesh jobs are asked to stop
+    jobs.CancelAll();  // running mesh jobs are asked to stop
+    // A running recording is closed (its last chunk, summary and footer written) while the
+    // loop, the hub and the services still run; no new one starts.
+    if (auto r = recorder.Shutdown())
+      spdlog::info("recording {} closed on shutdown: {:.1f} s, {} bytes, {}", r->id(),
+                   r->duration_s(), r->bytes(), r->file());
     if (gateway) gateway->Stop();  // studio pages: their calls cancelled, connections closed
     server->GetHealthCheckService()->SetServingStatus(false);
     hub.Stop();  // open frame streams end with UNAVAILABLE

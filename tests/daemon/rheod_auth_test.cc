@@ -20,6 +20,7 @@
 #include "rheo/v1/device.grpc.pb.h"
 #include "rheo/v1/frames.pb.h"
 #include "rheo/v1/objects.pb.h"
+#include "rheo/v1/recording.pb.h"
 #include "rheo/v1/scene.pb.h"
 #include "rheod_fixture.h"
 
@@ -49,6 +50,8 @@ const std::map<std::string, Least>& Spec() {
       {"/rheo.v1.DeviceService/GetDeviceStatus", kViewer},
       {"/rheo.v1.DeviceService/EmergencyStop", kViewer},
       {"/rheo.v1.AuthService/WhoAmI", kViewer},
+      {"/rheo.v1.RecordingService/ListRecordings", kViewer},
+      {"/rheo.v1.RecordingService/ExportRecording", kViewer},
       {"/rheo.v1.ObjectService/CreateObject", kOperator},
       {"/rheo.v1.ObjectService/CancelJob", kOperator},
       {"/rheo.v1.ObjectService/ExtractContour", kOperator},
@@ -62,6 +65,9 @@ const std::map<std::string, Least>& Spec() {
       {"/rheo.v1.DeviceService/ReleaseLease", kOperator},
       {"/rheo.v1.DeviceService/ToolStream", kOperator},
       {"/rheo.v1.DeviceService/SimulatedHand", kOperator},
+      {"/rheo.v1.RecordingService/StartRecording", kOperator},
+      {"/rheo.v1.RecordingService/StopRecording", kOperator},
+      {"/rheo.v1.RecordingService/DeleteRecording", kOperator},
       {"/rheo.v1.ObjectService/DeleteObject", kAdmin},
       {"/rheo.v1.DeviceService/RevokeLease", kAdmin},
       {"/rheo.v1.AuthService/CreateToken", kAdmin},
@@ -116,7 +122,8 @@ TEST(RheodAuth, EveryMethodTimesEveryRole) {
   // file links its descriptors into this test's pool.)
   for (const pb::Descriptor* m :
        {v1::DaemonStatus::descriptor(), v1::Frame::descriptor(), v1::Scene::descriptor(),
-        v1::Object::descriptor(), v1::DeviceStatus::descriptor(), v1::Identity::descriptor()})
+        v1::Object::descriptor(), v1::DeviceStatus::descriptor(), v1::Identity::descriptor(),
+        v1::Recording::descriptor()})
     ASSERT_NE(m, nullptr);
   std::vector<std::string> methods;
   for (const std::string& service : ServedServices(d.channel(""))) {

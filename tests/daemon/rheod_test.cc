@@ -52,8 +52,9 @@ TEST_F(RheodTest, ReflectionListsEveryService) {
   ASSERT_TRUE(stream->Read(&resp));
   std::set<std::string> names;
   for (const auto& s : resp.list_services_response().service()) names.insert(s.name());
-  for (const char* want : {"rheo.v1.DaemonService", "rheo.v1.FrameService", "rheo.v1.SceneService",
-                           "rheo.v1.ObjectService", "rheo.v1.DeviceService"})
+  for (const char* want :
+       {"rheo.v1.DaemonService", "rheo.v1.FrameService", "rheo.v1.SceneService",
+        "rheo.v1.ObjectService", "rheo.v1.DeviceService", "rheo.v1.RecordingService"})
     EXPECT_TRUE(names.count(want)) << want << " missing from reflection";
 
   // A generic client can also fetch the schema of a service.

@@ -4,9 +4,14 @@
 // google.protobuf.FileDescriptorSet), and the counts are printed as JSON.
 //
 //   node tests/record/read_mcap.mjs FILE [--expect-truncated] [--expect REPORT.json]
-//                                   [--web-root clients/web]
+//                                   [--rheod RECORDING.json] [--web-root clients/web]
 //
-// --expect compares the counts per topic with write_sample's report (expected_per_topic). The
+// --expect compares the counts per topic with write_sample's report (expected_per_topic).
+// --rheod RECORDING.json reads a recording rheod made (`rheoctl record stop --json` gives the
+// JSON): the counts per topic must be the Recording's message_counts, every channel must carry
+// the schema of its rheo.v1 type, /tool and /frames messages must lie at loop_epoch_unix_ns +
+// tick x period_ns (the channels' metadata), /tool must hold one sample per tick but the dropped
+// ones, and /scene must hold an object's tetrahedral mesh. The
 // packages come from clients/web/node_modules (npm ci there): @mcap/core, @mcap/support (its zstd
 // and lz4 decompressors are @foxglove/wasm-zstd and @foxglove/wasm-lz4), @mcap/nodejs, protobufjs.
 import { open, readFile } from 'node:fs/promises';
@@ -17,11 +22,12 @@ import { fileURLToPath } from 'node:url';
 const here = dirname(fileURLToPath(import.meta.url));
 
 function parseArgs(argv) {
-  const out = { file: null, truncated: false, expect: null, webRoot: join(here, '../../clients/web') };
+  const out = { file: null, truncated: false, expect: null, rheod: null, webRoot: join(here, '../../clients/web') };
   for (let i = 0; i < argv.length; ++i) {
     const a = argv[i];
     if (a === '--expect-truncated') out.truncated = true;
     else if (a === '--expect') out.expect = resolve(argv[++i]);
+    else if (a === '--rheod') out.rheod = resolve(argv[++i]);
     else if (a === '--web-root') out.webRoot = resolve(argv[++i]);
     else if (!a.startsWith('--') && out.file === null) out.file = resolve(a);
     else throw new Error(`unknown argument ${a}`);
@@ -58,16 +64,46 @@ function typeOf(schema) {
 const perTopic = {};
 let messages = 0;
 let lastLogTime = -1n;
+// rheod recordings: what the checks after the read need.
+const rheod = { toolTicks: [], tets: 0, sceneVertices: 0, badTimes: [] };
+const rheodTypes = {
+  '/tool': 'rheo.v1.ToolSample', '/frames': 'rheo.v1.Frame', '/scene': 'rheo.v1.SceneEvent',
+  '/parameters': 'rheo.v1.ParameterChange', '/commands': 'rheo.v1.CommandEvent', '/loop': 'rheo.v1.LoopSample',
+};
+function checkRheod(channel, schema, decoded, msg) {
+  check(rheodTypes[channel.topic] === schema.name, `${channel.topic} carries ${schema.name}, not ${rheodTypes[channel.topic]}`);
+  const meta = channel.metadata instanceof Map ? Object.fromEntries(channel.metadata) : channel.metadata;
+  const tick = channel.topic === '/tool' ? decoded.tick : channel.topic === '/frames' ? decoded.stamp?.tick : undefined;
+  if (tick !== undefined) {
+    const want = BigInt(meta.loop_epoch_unix_ns) + BigInt(tick) * BigInt(meta.period_ns);
+    if (want !== msg.logTime && rheod.badTimes.length < 5) rheod.badTimes.push(`${channel.topic} tick ${tick}: log time ${msg.logTime}, want ${want}`);
+  }
+  if (channel.topic === '/tool') rheod.toolTicks.push(BigInt(decoded.tick));
+  if (channel.topic === '/scene' && decoded.mesh) {
+    // protobufjs keeps the descriptor's field names (snake_case).
+    const mesh = decoded.mesh;
+    const vertices = mesh.vertex_count ?? 0;
+    const tets = mesh.tetrahedra ?? [];
+    rheod.tets += tets.length / 4;
+    rheod.sceneVertices += vertices;
+    check(vertices > 0, '/scene: an object without vertices');
+    check((mesh.rest_positions ?? []).length === 3 * vertices, `/scene: ${(mesh.rest_positions ?? []).length} rest coordinates for ${vertices} vertices`);
+    check(tets.length % 4 === 0 && tets.every((v) => v < vertices), '/scene: tetrahedra index past the vertices');
+  }
+}
+
 function onMessage(channel, schema, msg, ordered) {
   const type = typeOf(schema);
   const decoded = type.toObject(type.decode(msg.data), { longs: String });
   messages += 1;
   perTopic[channel.topic] = (perTopic[channel.topic] ?? 0) + 1;
-  // The sample's messages carry the record's sequence and log time; a mis-framed payload would not.
-  if ('sequence' in type.fields) {
+  if (args.rheod) {
+    checkRheod(channel, schema, decoded, msg);
+  } else if ('sequence' in type.fields) {
+    // The sample's messages carry the record's sequence and log time; a mis-framed payload would not.
     check((decoded.sequence ?? 0) === msg.sequence, `${channel.topic}: decoded sequence ${decoded.sequence} != record ${msg.sequence}`);
   }
-  if (decoded.stamp !== undefined) {
+  if (!args.rheod && decoded.stamp !== undefined) {
     const ns = BigInt(decoded.stamp.seconds ?? 0) * 1000000000n + BigInt(decoded.stamp.nanos ?? 0);
     check(ns === msg.logTime, `${channel.topic} #${msg.sequence}: stamp ${ns} != log time ${msg.logTime}`);
   }
@@ -168,6 +204,26 @@ if (args.expect) {
     check((want[topic] ?? 0) === (perTopic[topic] ?? 0), `${topic}: read ${perTopic[topic] ?? 0} messages, the writer says ${want[topic] ?? 0}`);
   }
   check(messages > 0, 'no messages read');
+}
+if (args.rheod) {
+  const recording = JSON.parse(await readFile(args.rheod, 'utf8'));
+  const want = recording.message_counts ?? {};
+  for (const topic of new Set([...Object.keys(want), ...Object.keys(perTopic)])) {
+    check(Number(want[topic] ?? 0) === (perTopic[topic] ?? 0), `${topic}: read ${perTopic[topic] ?? 0} messages, rheod says ${want[topic] ?? 0}`);
+  }
+  for (const topic of Object.keys(rheodTypes)) check(topic in perTopic, `no ${topic} channel`);
+  check(rheod.badTimes.length === 0, `log times off the tick clock: ${rheod.badTimes.join('; ')}`);
+  const ticks = rheod.toolTicks;
+  const dropped = BigInt(recording.dropped_ticks ?? 0);
+  if (ticks.length > 0) {
+    let gaps = 0n;
+    for (let i = 1; i < ticks.length; ++i) gaps += ticks[i] - ticks[i - 1] - 1n;
+    check(gaps === dropped, `/tool misses ${gaps} ticks between ${ticks[0]} and ${ticks[ticks.length - 1]}; rheod dropped ${dropped}`);
+    check(String(ticks[0]) === String(recording.first_tick ?? 0) && String(ticks[ticks.length - 1]) === String(recording.last_tick ?? 0),
+      `/tool spans ticks ${ticks[0]}..${ticks[ticks.length - 1]}, rheod says ${recording.first_tick}..${recording.last_tick}`);
+  }
+  check(rheod.tets > 0, '/scene holds no tetrahedral mesh');
+  result.rheod = { tool_samples: ticks.length, dropped_ticks: Number(dropped), scene_tetrahedra: rheod.tets, scene_vertices: rheod.sceneVertices };
 }
 result.failures = failures;
 console.log(JSON.stringify(result, null, 2));

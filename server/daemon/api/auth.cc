@@ -82,6 +82,9 @@ const std::vector<MethodRule>& MethodTable() {
       {"/rheo.v1.SceneService/ListParameters", V, false},
       {"/rheo.v1.DeviceService/GetDeviceStatus", V, false},
       {"/rheo.v1.AuthService/WhoAmI", V, false},
+      {"/rheo.v1.RecordingService/ListRecordings", V, false},
+      // A recording's file can be large: each export counts against the calls per second.
+      {"/rheo.v1.RecordingService/ExportRecording", V, false, metered},
       // Anyone who can see the device may stop it (clearing it needs the lease: the handler).
       {"/rheo.v1.DeviceService/EmergencyStop", V, true},
       // Operating.
@@ -98,6 +101,9 @@ const std::vector<MethodRule>& MethodTable() {
       {"/rheo.v1.DeviceService/ReleaseLease", O, true},
       {"/rheo.v1.DeviceService/ToolStream", O, true, false, pose},
       {"/rheo.v1.DeviceService/SimulatedHand", O, true},
+      {"/rheo.v1.RecordingService/StartRecording", O, true},
+      {"/rheo.v1.RecordingService/StopRecording", O, true},
+      {"/rheo.v1.RecordingService/DeleteRecording", O, true},
       // Administering.
       {"/rheo.v1.ObjectService/DeleteObject", A, true},
       {"/rheo.v1.DeviceService/RevokeLease", A, true},

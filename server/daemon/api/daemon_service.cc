@@ -7,17 +7,9 @@
 
 namespace rheo::daemon {
 
-grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetStatusRequest* req,
-                                          v1::DaemonStatus* out) {
-  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
-  const rt::Loop& loop = ctx_.engine->loop();
+void FillLoopStatus(const DaemonContext& ctx, v1::LoopStatus* l) {
+  const rt::Loop& loop = ctx.engine->loop();
   const rt::LoopStats& s = loop.stats();
-  out->set_version(ctx_.version);
-  out->set_uptime_s(
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - ctx_.started).count());
-  out->set_listen_address(ctx_.listen_address);
-  out->set_data_dir(ctx_.data_dir);
-  v1::LoopStatus* l = out->mutable_loop();
   l->set_rate_hz(1e9 / static_cast<double>(loop.options().period_ns));
   l->set_ticks(s.ticks.load());
   l->set_late_ticks(s.late_ticks.load());
@@ -29,13 +21,24 @@ grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetSta
   l->set_realtime_priority(loop.environment().realtime);
   l->set_memory_locked(loop.environment().memory_locked);
   l->set_notes(loop.environment().notes);
-  l->set_commands_applied(ctx_.engine->commands_applied());
-  l->set_commands_rejected(ctx_.engine->commands_rejected());
-  l->set_restores(ctx_.engine->restores());
-  l->set_predicted_sim_us(ctx_.scene->predicted_ns() * 1e-3);
+  l->set_commands_applied(ctx.engine->commands_applied());
+  l->set_commands_rejected(ctx.engine->commands_rejected());
+  l->set_restores(ctx.engine->restores());
+  l->set_predicted_sim_us(ctx.scene->predicted_ns() * 1e-3);
   // 0: no admission by cost (--sim-budget 0).
-  l->set_sim_budget_us(std::isfinite(ctx_.sim_budget_ns) ? ctx_.sim_budget_ns * 1e-3 : 0.0);
-  l->set_unstable_objects(ctx_.engine->unstable_objects());
+  l->set_sim_budget_us(std::isfinite(ctx.sim_budget_ns) ? ctx.sim_budget_ns * 1e-3 : 0.0);
+  l->set_unstable_objects(ctx.engine->unstable_objects());
+}
+
+grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetStatusRequest* req,
+                                          v1::DaemonStatus* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
+  out->set_version(ctx_.version);
+  out->set_uptime_s(
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - ctx_.started).count());
+  out->set_listen_address(ctx_.listen_address);
+  out->set_data_dir(ctx_.data_dir);
+  FillLoopStatus(ctx_, out->mutable_loop());
   out->set_device(ctx_.device);
   if (ctx_.device_link) out->add_capabilities("device");
   out->set_frame_clients(static_cast<uint32_t>(ctx_.hub->clients()));
@@ -59,6 +62,7 @@ grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetSta
   }
   for (const char* c : {"loop", "frames", "sketch", "mesh", "store", "sim"})
     out->add_capabilities(c);
+  if (ctx_.recorder) out->add_capabilities("record");
   return grpc::Status::OK;
 }
 

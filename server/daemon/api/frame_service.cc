@@ -59,6 +59,49 @@ grpc::Status ShuttingDown() {
 
 }  // namespace
 
+void FillFrame(const DaemonContext& ctx, const LoopFrame& f, const FrameContent& what,
+               v1::Frame* out) {
+  v1::Frame& frame = *out;
+  frame.mutable_stamp()->set_tick(f.tick);
+  frame.mutable_stamp()->set_sim_time(f.sim_time);
+  *frame.mutable_stamp()->mutable_wall_time() = google::protobuf::util::TimeUtil::GetCurrentTime();
+  *frame.mutable_stamp()->mutable_published() =
+      google::protobuf::util::TimeUtil::NanosecondsToTimestamp(f.published_unix_ns);
+  frame.set_paused(f.paused);
+  frame.set_topology_revision(f.scene_revision);
+  for (uint32_t i = 0; i < f.object_count; ++i) {
+    const FrameObject& fo = f.objects[i];
+    auto entry = ctx.scene->Find(fo.instance_id);
+    if (!entry) continue;  // being removed
+    if (what.topology) {
+      v1::Topology* t = frame.add_topology();
+      t->set_instance_id(fo.instance_id);
+      t->set_vertex_count(fo.vertex_count);
+      t->mutable_triangles()->Add(entry->triangles.begin(), entry->triangles.end());
+      t->set_revision(f.scene_revision);
+    }
+    v1::ObjectState* os = frame.add_objects();
+    os->set_instance_id(fo.instance_id);
+    os->set_sleeping(fo.sleeping);
+    os->set_kinetic_energy(fo.kinetic_energy);
+    os->set_restores(fo.restores);
+    os->set_unstable(fo.unstable);
+    os->set_multi_rate(fo.multi_rate);
+    const float* p = f.positions.data() + 3u * fo.first;
+    os->set_volume(EnclosedVolume(p, fo.vertex_count, entry->triangles));
+    if (what.positions && what.quantized)
+      Quantize(p, fo.vertex_count, os);
+    else if (what.positions)
+      os->mutable_positions()->Add(p, p + 3u * fo.vertex_count);
+  }
+  if (f.tool.present)
+    FillToolState(f.tool, ctx.leases ? ctx.leases->Holder().first : std::string(),
+                  frame.mutable_tool());
+  frame.mutable_loop()->set_ticks(f.ticks);
+  frame.mutable_loop()->set_late_ticks(f.late_ticks);
+  frame.mutable_loop()->set_last_work_us(f.work_ns / 1e3);
+}
+
 grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
                                            const v1::WatchFramesRequest* request,
                                            grpc::ServerWriter<v1::Frame>* writer) {
@@ -99,48 +142,10 @@ grpc::Status FrameServiceImpl::WatchFrames(grpc::ServerContext* context,
     if (!snap) continue;
     last_seq = snap->seq;
     const LoopFrame& f = snap->frame;
-    frame.Clear();
-    frame.mutable_stamp()->set_tick(f.tick);
-    frame.mutable_stamp()->set_sim_time(f.sim_time);
-    *frame.mutable_stamp()->mutable_wall_time() =
-        google::protobuf::util::TimeUtil::GetCurrentTime();
-    *frame.mutable_stamp()->mutable_published() =
-        google::protobuf::util::TimeUtil::NanosecondsToTimestamp(f.published_unix_ns);
-    frame.set_paused(f.paused);
-    frame.set_topology_revision(f.scene_revision);
     const bool send_topology = f.scene_revision != revision_sent;
     revision_sent = f.scene_revision;
-    for (uint32_t i = 0; i < f.object_count; ++i) {
-      const FrameObject& fo = f.objects[i];
-      auto entry = ctx_.scene->Find(fo.instance_id);
-      if (!entry) continue;  // being removed
-      if (send_topology) {
-        v1::Topology* t = frame.add_topology();
-        t->set_instance_id(fo.instance_id);
-        t->set_vertex_count(fo.vertex_count);
-        t->mutable_triangles()->Add(entry->triangles.begin(), entry->triangles.end());
-        t->set_revision(f.scene_revision);
-      }
-      v1::ObjectState* os = frame.add_objects();
-      os->set_instance_id(fo.instance_id);
-      os->set_sleeping(fo.sleeping);
-      os->set_kinetic_energy(fo.kinetic_energy);
-      os->set_restores(fo.restores);
-      os->set_unstable(fo.unstable);
-      os->set_multi_rate(fo.multi_rate);
-      const float* p = f.positions.data() + 3u * fo.first;
-      os->set_volume(EnclosedVolume(p, fo.vertex_count, entry->triangles));
-      if (request->positions() && request->quantized())
-        Quantize(p, fo.vertex_count, os);
-      else if (request->positions())
-        os->mutable_positions()->Add(p, p + 3u * fo.vertex_count);
-    }
-    if (f.tool.present)
-      FillToolState(f.tool, ctx_.leases ? ctx_.leases->Holder().first : std::string(),
-                    frame.mutable_tool());
-    frame.mutable_loop()->set_ticks(f.ticks);
-    frame.mutable_loop()->set_late_ticks(f.late_ticks);
-    frame.mutable_loop()->set_last_work_us(f.work_ns / 1e3);
+    frame.Clear();
+    FillFrame(ctx_, f, {send_topology, request->positions(), request->quantized()}, &frame);
     frame.set_dropped_frames(dropped);
     if (!writer->Write(frame)) return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
     slot.Touch();

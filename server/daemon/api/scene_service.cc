@@ -6,6 +6,7 @@
 #include "daemon/api/convert.h"
 #include "daemon/api/grpc_status.h"
 #include "daemon/api/limits.h"
+#include "daemon/api/recording_service.h"
 #include "daemon/api/services.h"
 #include "daemon/device/tool_placement.h"
 #include "sim/cost.h"
@@ -325,6 +326,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   contact.release();
   if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("object");
   FillSceneObject(*entry, false, false, out);
+  RecordSceneAdded(ctx_, *entry, mesh);
   return grpc::Status::OK;
 }
 
@@ -333,7 +335,8 @@ grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
                                                v1::RemoveFromSceneResponse*) {
   if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
   std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
-  if (!ctx_.scene->Find(req->instance_id()))
+  const auto entry = ctx_.scene->Find(req->instance_id());
+  if (!entry)
     return ToGrpc(
         NotFound("no scene object with instance_id " + std::to_string(req->instance_id())));
   Command c;
@@ -341,6 +344,7 @@ grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
   c.instance_id = req->instance_id();
   if (grpc::Status s = SubmitAndWait(*ctx_.engine, c); !s.ok()) return s;
   ctx_.scene->Erase(req->instance_id());
+  RecordSceneRemoved(ctx_, *entry);
   return grpc::Status::OK;
 }
 
@@ -428,6 +432,7 @@ grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
     }
     ctx_.scene->Put(next);
     if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("change");
+    RecordParameters(ctx_, *next);
   }
   FillParameters(updated.front()->params, out->mutable_parameters());
   return grpc::Status::OK;

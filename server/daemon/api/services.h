@@ -29,6 +29,8 @@
 
 namespace rheo::daemon {
 
+class Recorder;  // daemon/record/recorder.h
+
 /// One event of an object-creation job: progress, or the error that ended it.
 struct JobEvent {
   static JobEvent Progress(v1::CreateObjectProgress p) { return {std::move(p), std::nullopt, {}}; }
@@ -63,7 +65,22 @@ struct DaemonContext {
   // share of each tick the simulation of the whole scene may take [ns].
   sim::CostCoefficients tick_cost;
   double sim_budget_ns = 600'000.0;
+  Recorder* recorder = nullptr;  // session recording; null: none
 };
+
+/// What a frame carries besides the objects' states: each object's surface (topology), its
+/// positions, as floats or quantized.
+struct FrameContent {
+  bool topology = false;
+  bool positions = false;
+  bool quantized = false;
+};
+/// The loop frame `f` as WatchFrames sends it (and /frames records it); dropped_frames is the
+/// caller's.
+void FillFrame(const DaemonContext& ctx, const LoopFrame& f, const FrameContent& what,
+               v1::Frame* out);
+/// The loop's health as GetStatus reports it.
+void FillLoopStatus(const DaemonContext& ctx, v1::LoopStatus* out);
 
 /// Counts a stream against its caller's token for as long as `slot` lives (RESOURCE_EXHAUSTED
 /// past the limit); the handler touches the slot on every message it reads or writes.

@@ -3,6 +3,8 @@
 #include <chrono>
 #include <thread>
 
+#include "daemon/loop/tick_ring.h"
+
 namespace rheo::daemon {
 
 Engine::Engine(EngineOptions options)
@@ -184,6 +186,7 @@ void Engine::Tick(const rt::TickInfo& info) {
     tool_scratch_.tick = info.tick;
     tool_.Store(tool_scratch_);
   }
+  if (tick_ring_) tick_ring_->Offer(info, time, paused, tool_scratch_);
 
   LoopFrame& f = frames_.back();
   f.tool = tool_scratch_;

@@ -21,6 +21,8 @@ namespace rheo::daemon {
 /// Most objects one scene holds at once.
 inline constexpr int kMaxSceneObjects = 16;
 
+class TickRing;  // daemon/loop/tick_ring.h: what a session recording takes from each tick
+
 /// Per-object state of the haptic side (the device link's renderer), opaque to the engine. It is
 /// built outside the loop, handed over with kAddObject and retired with the object.
 class ObjectContact {
@@ -180,6 +182,9 @@ class Engine {
 
   /// Attaches the haptic side; call before Start(). The engine does not own it.
   void AttachDevice(TickDevice* device) { device_ = device; }
+  /// Attaches the session recorder's ring; call before Start(). While the ring has a session,
+  /// every tick offers it one plain record (no allocation, no lock; dropped when it is full).
+  void AttachTickRing(TickRing* ring) { tick_ring_ = ring; }
   void Start();
   void Stop();
   /// Runs one tick on the calling thread, exactly as the loop thread runs it, for a caller that
@@ -238,6 +243,7 @@ class Engine {
   std::atomic<int> object_count_{0};
 
   TickDevice* device_ = nullptr;
+  TickRing* tick_ring_ = nullptr;
   SeqSlot<ToolTelemetry> tool_;
 
   // Loop-thread state.

@@ -15,7 +15,8 @@ namespace pb = google::protobuf;
 // The services the bridge reaches: the whole public API.
 constexpr const char* kServices[] = {"rheo.v1.AuthService",   "rheo.v1.DaemonService",
                                      "rheo.v1.DeviceService", "rheo.v1.FrameService",
-                                     "rheo.v1.ObjectService", "rheo.v1.SceneService"};
+                                     "rheo.v1.ObjectService", "rheo.v1.RecordingService",
+                                     "rheo.v1.SceneService"};
 
 std::string Flatten(const grpc::ByteBuffer& buffer) {
   std::vector<grpc::Slice> slices;
