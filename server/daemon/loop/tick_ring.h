@@ -45,6 +45,7 @@ class TickRing {
     r.sim_time = sim_time;
     r.tool = tool;
     if (!ring_.push(r)) dropped_.fetch_add(1, std::memory_order_relaxed);
+    last_offered_.store(info.tick, std::memory_order_release);
   }
 
   /// Recorder thread: starts a session and returns its number (records of earlier sessions
@@ -66,11 +67,15 @@ class TickRing {
   size_t waiting() const { return ring_.read_available(); }
   /// Records dropped because the ring was full, over every session.
   uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
+  /// The newest tick offered to a session (recorded or dropped): where a recording whose last
+  /// ticks were dropped really ends.
+  uint64_t last_offered() const { return last_offered_.load(std::memory_order_acquire); }
 
  private:
   boost::lockfree::spsc_queue<TickRecord, boost::lockfree::capacity<kCapacity>> ring_;
   std::atomic<uint32_t> session_{0};
   std::atomic<uint64_t> dropped_{0};
+  std::atomic<uint64_t> last_offered_{0};
   TickRecord scratch_;         // loop thread only
   uint32_t next_session_ = 1;  // Begin's caller only (one at a time)
 };

@@ -512,6 +512,8 @@ void Recorder::Session::Run() {
     }
   }
   if (hub_handle) hub.Unregister(hub_handle);
+  // Ticks dropped after the last one the ring held still belong to the recording's span.
+  if (have_tick) last_tick = std::max(last_tick, ring.last_offered());
   if (error.ok()) {
     (void)WriteLoopSample();
     if (Status s = writer.Close(); !s.ok()) Fail(s);
