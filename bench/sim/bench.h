@@ -87,6 +87,8 @@ struct SampleMeshes {
 Result<SampleMeshes> MeshSample(const std::string& sample, std::span<const int> targets);
 int Sketched(const std::string& sample, int max_tets);   // sketched.cc
 int MultiRate(const std::string& sample, int max_tets);  // multirate.cc
+// Work-precision at each size of a sample (precision.cc): a table and one SVG per size.
+int PrecisionSizes(const std::string& sample, int max_tets, const std::string& svg_prefix);
 #ifdef RHEO_HAVE_BULLET
 int Bullet();       // bullet.cc
 int BulletCheck();  // bullet.cc

@@ -7,6 +7,8 @@
 //   sim_bench precond [max_tets]     CG preconditioners on one tick's system
 //   sim_bench sketched [sample] [max_tets]   a sketched sample at ~5k/20k/100k tets, drop and
 //                                    press, tick median and tails beside Bullet's step
+//   sim_bench precision-sizes [sample] [max_tets] [svg_prefix]  work-precision of each
+//                                    integrator and Bullet at ~5k/20k/100k tets, an SVG per size
 //   sim_bench multirate [sample] [max_tets]  a press through the renderer: the multi-rate scheme
 //                                    (patch every tick, whole every N) against the full solve
 // One thread throughout (the library has none).
@@ -29,6 +31,9 @@ int main(int argc, char** argv) {
     return Sketched(argc > 2 ? argv[2] : "bean", argc > 3 ? std::atoi(argv[3]) : 100000);
   if (mode == "multirate")
     return MultiRate(argc > 2 ? argv[2] : "bean", argc > 3 ? std::atoi(argv[3]) : 100000);
+  if (mode == "precision-sizes")
+    return PrecisionSizes(argc > 2 ? argv[2] : "bean", argc > 3 ? std::atoi(argv[3]) : 100000,
+                          argc > 4 ? argv[4] : "sim_work_precision");
   if (mode == "precision") return Precision(argc > 2 ? argv[2] : "sim_work_precision.svg");
 #ifdef RHEO_HAVE_BULLET
   if (mode == "bullet") return Bullet();
@@ -42,6 +47,7 @@ int main(int argc, char** argv) {
   std::fprintf(
       stderr,
       "usage: sim_bench speed [max_tets] | kernels [tets] | precond [max_tets] | precision [svg] | "
-      "cg | params | bullet | sketched [sample] [max_tets] | multirate [sample] [max_tets]\n");
+      "cg | params | bullet | sketched [sample] [max_tets] | multirate [sample] [max_tets] | "
+      "precision-sizes [sample] [max_tets] [svg_prefix]\n");
   return 1;
 }
