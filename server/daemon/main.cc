@@ -289,7 +289,8 @@ int main(int argc, char** argv) {
                  "PEM CA: clients must present a certificate it signed (mutual TLS)");
   app.add_option("--limit-calls", flags.limit_calls,
                  "calls per second per token to each expensive method (CreateObject, "
-                 "ExtractContour, AddToScene, ExportObject), twice as many in a burst; 0: no "
+                 "ExtractContour, AddToScene, ExportObject, ExportRecording), twice as many in "
+                 "a burst; 0: no "
                  "limit")
       ->check(CLI::Range(0.0, 1e6))
       ->capture_default_str();

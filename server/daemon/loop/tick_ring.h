@@ -24,9 +24,9 @@ struct TickRecord {
 };
 
 /// The loop (producer) pushes a TickRecord per tick while a session is active; the recorder
-/// thread (consumer) pops them. The storage is a fixed array inside the object (8192 records,
-/// about 4 MiB: allocate the ring once, off the loop). A push into a full ring drops the record
-/// and counts it: the loop never waits for the recorder.
+/// thread (consumer) pops them. The storage is a fixed array inside the object (8192 records of
+/// 520 bytes, 4.3 MB: allocate the ring once, off the loop). A push into a full ring drops the
+/// record and counts it: the loop never waits for the recorder.
 class TickRing {
  public:
   static constexpr size_t kCapacity = 8192;  // ticks (8.2 s at 1 kHz)
