@@ -388,7 +388,8 @@ bool Recorder::Session::WriteTick(const TickRecord& r) {
   }
   last_tick = r.tick;
   FillToolSample(r, &sample);
-  return WriteMessage(kTool, TickTimeNs(r.tick), mono_to_unix_ns + r.start_ns, sample);
+  const int64_t started = mono_to_unix_ns + r.start_ns;
+  return WriteMessage(kTool, have_epoch ? TickTimeNs(r.tick) : started, started, sample);
 }
 
 bool Recorder::Session::DrainRing() {
@@ -460,7 +461,8 @@ void Recorder::Session::Run() {
   // The channels are added around this recording's first tick: its deadline gives the
   // wall-clock time of tick 0 (the channels' loop_epoch_unix_ns), and a tick's log time is that
   // plus tick x period, so /tool samples lie exactly one period apart.
-  const auto wait_end = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+  // A loop that does not tick (stalled) leaves the recording waiting here, with its events
+  // queued, until it ticks or the recording is stopped.
   for (;;) {
     TickRecord r;
     if (ring.Pop(&r, 1) == 1) {
@@ -470,8 +472,8 @@ void Recorder::Session::Run() {
       if (AddChannels() && DrainEvents() && WriteLoopSample()) (void)WriteTick(r);
       break;
     }
-    if (stop.load() || std::chrono::steady_clock::now() >= wait_end) {
-      // No tick within a second (a stalled loop): wall-clock times.
+    if (stop.load()) {
+      // Stopped before the loop ticked: wall-clock times (the channels' metadata says so).
       epoch_unix_ns = UnixNowNs();
       if (AddChannels() && DrainEvents()) (void)WriteLoopSample();
       break;
