@@ -329,8 +329,9 @@ TEST(RheodRecord, RecordsTheToolFramesSceneParametersAndCommands) {
       static_cast<unsigned long long>(done.ring_peak()), static_cast<unsigned long long>(contact),
       c.frames.size(), static_cast<unsigned long long>(done.bytes()), done.bytes() / seconds / 1e3,
       done.recorder_cpu_s(), 100.0 * done.recorder_cpu_s() / seconds);
-  // The loop ticks at 1 kHz (skipped periods of a loaded machine are no ticks).
-  EXPECT_GT(static_cast<double>(last - first + 1), 0.5 * seconds * 1000.0);
+  // The loop ticks at 1 kHz (skipped periods of a loaded machine, or of a sanitizer build's
+  // slow ticks, are no ticks).
+  EXPECT_GT(static_cast<double>(last - first + 1), (kSanitizerBuild ? 0.05 : 0.5) * seconds * 1e3);
   EXPECT_LT(static_cast<double>(last - first + 1), 1.05 * seconds * 1000.0 + 50);
 
   // /frames at about 60 Hz over the tick span, with positions and the heart's topology first.
@@ -546,7 +547,7 @@ TEST(RheodRecord, AFullDiskEndsTheRecordingAsFailedAndTheDaemonGoesOn) {
   s = Start(*d, "", 0.0, &again);
   EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
   EXPECT_NE(s.error_message().find("free"), std::string::npos) << s.error_message();
-  EXPECT_GT(LoopTickRate(*d, 1s), 500.0);
+  EXPECT_GT(LoopTickRate(*d, 1s), kSanitizerBuild ? 50.0 : 500.0);
   ASSERT_EQ(d->Terminate(10s), 0) << d->log();
 }
 
