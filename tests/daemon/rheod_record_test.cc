@@ -473,6 +473,15 @@ TEST(RheodRecord, ASigkilledRecordingIsListedTruncatedWithItsCompleteChunks) {
   std::printf("killed after %llu bytes: %zu complete chunks, %zu /tool samples, %zu frames kept\n",
               static_cast<unsigned long long>(on_disk), reader->chunks().size(), c.tool.size(),
               c.frames.size());
+  // A second restart lists it the same (counted once: the side file keeps what the scan found).
+  ASSERT_EQ(d->Terminate(10s), 0) << d->log();
+  d = std::make_unique<RheodProcess>(Args(dir.path));
+  ASSERT_TRUE(d->started()) << d->log();
+  const auto again = Find(*d, r.id());
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->state(), v1::RECORDING_STATE_TRUNCATED);
+  EXPECT_EQ(again->bytes(), listed->bytes());
+  for (const auto& [topic, n] : c.counts) EXPECT_EQ(again->message_counts().at(topic), n) << topic;
   // The truncated file exports as it is and can be deleted.
   std::string bytes;
   ASSERT_TRUE(Export(*d, r.id(), &bytes).ok());

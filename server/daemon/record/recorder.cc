@@ -159,6 +159,12 @@ Status WriteSideFile(const std::string& path, const v1::Recording& r) {
   j["last_tick"] = r.last_tick();
   j["recorder_cpu_s"] = r.recorder_cpu_s();
   j["ring_peak"] = r.ring_peak();
+  // A file without footer is counted by decompressing it; these spare the next start that scan
+  // while the file keeps this size.
+  j["bytes"] = r.bytes();
+  nlohmann::json counts = nlohmann::json::object();
+  for (const auto& [topic, n] : r.message_counts()) counts[topic] = n;
+  j["message_counts"] = counts;
   const std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp, std::ios::trunc);
@@ -214,6 +220,10 @@ void ReadSideFields(const nlohmann::json& j, v1::Recording* r) {
   r->set_last_tick(j.value("last_tick", uint64_t{0}));
   r->set_recorder_cpu_s(j.value("recorder_cpu_s", 0.0));
   r->set_ring_peak(j.value("ring_peak", uint64_t{0}));
+  r->set_bytes(j.value("bytes", uint64_t{0}));
+  if (auto c = j.find("message_counts"); c != j.end() && c->is_object())
+    for (const auto& [topic, n] : c->items())
+      (*r->mutable_message_counts())[topic] = n.get<uint64_t>();
 }
 
 std::string NewId(const std::string& dir) {
@@ -615,6 +625,9 @@ Result<size_t> Recorder::Load() {
     ReadSideFile((fs::path(options_.dir) / (id + ".json")).string(), &r);
     if (r.name().empty()) r.set_name(id);
     const v1::RecordingState side_state = r.state();
+    const uint64_t side_bytes = r.bytes();
+    const auto side_counts = r.message_counts();
+    r.clear_message_counts();
     auto reader = record::McapReader::OpenFile(entry.path().string());
     std::error_code size_ec;
     r.set_bytes(entry.file_size(size_ec));
@@ -627,6 +640,7 @@ Result<size_t> Recorder::Load() {
     std::map<std::string, uint64_t> counts;
     for (const auto& [cid, c] : reader->channels()) counts[c.topic] = 0;
     uint64_t t0 = 0, t1 = 0;
+    bool scanned = false;
     if (reader->statistics()) {
       const record::Statistics& st = *reader->statistics();
       for (const auto& [cid, n] : st.channel_message_counts) {
@@ -635,6 +649,11 @@ Result<size_t> Recorder::Load() {
       }
       t0 = st.message_start_time;
       t1 = st.message_end_time;
+    } else if (!side_counts.empty() && side_bytes == r.bytes() &&
+               (side_state == v1::RECORDING_STATE_TRUNCATED ||
+                side_state == v1::RECORDING_STATE_FAILED)) {
+      // Counted at an earlier start (or when it failed), and the file has not changed since.
+      for (const auto& [topic, n] : side_counts) counts[topic] = n;
     } else {
       // No summary: count what the complete chunks hold (stops at a damaged one).
       (void)reader->ForEachMessage([&](const record::Message& m) {
@@ -643,6 +662,7 @@ Result<size_t> Recorder::Load() {
         t1 = std::max(t1, m.log_time);
         return Status::Ok();
       });
+      scanned = true;
     }
     for (const auto& [topic, n] : counts) (*r.mutable_message_counts())[topic] = n;
     if (!r.has_started() && t0 > 0) SetTime(static_cast<int64_t>(t0), r.mutable_started());
@@ -662,6 +682,11 @@ Result<size_t> Recorder::Load() {
     }
     if (r.has_started() && r.has_ended())
       r.set_duration_s(static_cast<double>(UnixNs(r.ended()) - UnixNs(r.started())) * 1e-9);
+    if (scanned) {
+      if (Status st = WriteSideFile((fs::path(options_.dir) / (id + ".json")).string(), r);
+          !st.ok())
+        spdlog::warn("recordings: {} (it is counted again at the next start)", st.error().message);
+    }
     found[id] = std::move(r);
   }
   if (ec)
