@@ -84,7 +84,10 @@ struct SampleMeshes {
   std::vector<TetMesh> meshes;
   std::vector<double> resolution;  // the edge length asked of the mesher [m]
 };
+/// Each mesh's lowest point is on the floor (y = 0).
 Result<SampleMeshes> MeshSample(const std::string& sample, std::span<const int> targets);
+/// At about 5k, 20k and 100k tets, those not above `max_tets`.
+Result<SampleMeshes> MeshSampleSizes(const std::string& sample, int max_tets);
 int Sketched(const std::string& sample, int max_tets);   // sketched.cc
 int MultiRate(const std::string& sample, int max_tets);  // multirate.cc
 // Work-precision at each size of a sample (precision.cc): a table and one SVG per size.

@@ -130,10 +130,7 @@ Run RunMultiRate(const SimObject& settled, const Grip& grip, const Vec3& start, 
 }  // namespace
 
 int MultiRate(const std::string& sample, int max_tets) {
-  std::vector<int> targets;
-  for (int target : {5000, 20000, 100000})
-    if (target <= max_tets) targets.push_back(target);
-  auto meshes = MeshSample(sample, targets);
+  auto meshes = MeshSampleSizes(sample, max_tets);
   if (!meshes.ok()) {
     std::fprintf(stderr, "sim_bench multirate: %s\n", meshes.error().message.c_str());
     return 1;

@@ -139,10 +139,7 @@ int Precision(const std::string& svg) {
 namespace sim_bench {
 
 int PrecisionSizes(const std::string& sample, int max_tets, const std::string& svg_prefix) {
-  std::vector<int> targets;
-  for (int target : {5000, 20000, 100000})
-    if (target <= max_tets) targets.push_back(target);
-  auto meshes = MeshSample(sample, targets);
+  auto meshes = MeshSampleSizes(sample, max_tets);
   if (!meshes.ok()) {
     std::fprintf(stderr, "sim_bench precision-sizes: %s\n", meshes.error().message.c_str());
     return 1;
@@ -162,11 +159,7 @@ int PrecisionSizes(const std::string& sample, int max_tets, const std::string& s
               "shape_err", "pos_err", "cpu_s/s", "cpu_us", "restores");
   const Method* methods[] = {&kMethods[1], &kMethods[2], &kMethods[3]};
   for (size_t mi = 0; mi < meshes->meshes.size(); ++mi) {
-    // The mesher centres the solid on its sketch plane: its lowest point goes onto the floor.
-    TetMesh mesh = meshes->meshes[mi];
-    double lowest = 1e30;
-    for (const Vec3& x : mesh.positions) lowest = std::min(lowest, x.y());
-    for (Vec3& x : mesh.positions) x.y() -= lowest;
+    const TetMesh& mesh = meshes->meshes[mi];
     Parameters p = FindPreset("organ")->params;
     p.sleep_time = 0.0;
     std::vector<Point> pts;

@@ -79,17 +79,28 @@ Result<SampleMeshes> MeshSample(const std::string& sample, std::span<const int> 
       solid = rheo::mesh::BuildSolid(contour->contour, opt);
     }
     if (!solid.ok()) return solid.error();
-    out.meshes.push_back(std::move(solid->mesh));
+    // The mesher leaves the solid where its sketch was (the bean at y = -0.095 to -0.048 m):
+    // its lowest point goes onto the floor (y = 0). Until 2026-12-03 it did not, and every
+    // sketched run started with the whole object under the floor.
+    TetMesh& mesh = solid->mesh;
+    double lowest = 1e30;
+    for (const Vec3& x : mesh.positions) lowest = std::min(lowest, x.y());
+    for (Vec3& x : mesh.positions) x.y() -= lowest;
+    out.meshes.push_back(std::move(mesh));
     out.resolution.push_back(opt.resolution);
   }
   return out;
 }
 
-int Sketched(const std::string& sample, int max_tets) {
+Result<SampleMeshes> MeshSampleSizes(const std::string& sample, int max_tets) {
   std::vector<int> targets;
   for (int target : {5000, 20000, 100000})
     if (target <= max_tets) targets.push_back(target);
-  auto meshes = MeshSample(sample, targets);
+  return MeshSample(sample, targets);
+}
+
+int Sketched(const std::string& sample, int max_tets) {
+  auto meshes = MeshSampleSizes(sample, max_tets);
   if (!meshes.ok()) {
     std::fprintf(stderr, "sim_bench sketched: %s\n", meshes.error().message.c_str());
     return 1;
@@ -105,13 +116,7 @@ int Sketched(const std::string& sample, int max_tets) {
               "res_mm", "med_us", "p99_us", "max_us", "us/1ktet", "cg_mean", "cg_max", "restores",
               "bullet_us", "ratio", "bullet2_us", "ratio2");
   for (size_t mi = 0; mi < meshes->meshes.size(); ++mi) {
-    // The mesher leaves the solid where its sketch was (the bean at y = -0.095 to -0.048 m):
-    // its lowest point goes onto the floor first. Until 2026-12-03 it did not, and every run
-    // below started with the whole object under the floor (sketched.txt before that date).
-    TetMesh mesh = meshes->meshes[mi];
-    double lowest = 1e30;
-    for (const Vec3& x : mesh.positions) lowest = std::min(lowest, x.y());
-    for (Vec3& x : mesh.positions) x.y() -= lowest;
+    const TetMesh& mesh = meshes->meshes[mi];
     Parameters p = FindPreset("organ")->params;
     p.sleep_time = 0.0;  // measured while it moves, never asleep
     for (const Scene& sc : {Scene{"drop", mesh, p, 0.02, 0.0}, Scene{"press", mesh, p, 0.0, 3.0}}) {
