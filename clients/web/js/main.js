@@ -5,7 +5,8 @@
 import { Rpc, rpcUrl, Code } from './rpc.js';
 import { View3D } from './view3d.js';
 
-let viewOnly = new URLSearchParams(location.search).has('view');
+const asked = { view: new URLSearchParams(location.search).has('view') };
+let viewOnly = asked.view;
 const $ = (sel) => document.querySelector(sel);
 
 // The access token: from the URL fragment (#token=..., never the query, so it reaches no server
@@ -24,6 +25,7 @@ function takeToken() {
 }
 const rpc = new Rpc(rpcUrl(), takeToken());
 let studio = null; // the editing panels, in studio mode (below)
+let recordings = null; // the recordings panel (or the status line's indicator alone), once signed in
 const view = new View3D($('#view'), $('#view-overlay'));
 
 // ---------------------------------------------------------------------------------------------
@@ -112,6 +114,7 @@ rpc.addEventListener('open', () => {
   view.reset(); // the new subscription sends every topology again
   loadScene();
   if (studio) studio.onConnected();
+  if (recordings) recordings.refresh().catch(() => {});
 });
 
 async function loadScene() {
@@ -205,20 +208,42 @@ window.rheo.identity = identity.error ? null : { name: identity.tokenName, role:
 $('#who').textContent = identity.error ? 'not signed in' : `${identity.tokenName} (${roleName[identity.role] || '?'})`;
 
 const template = $('#studio-panels');
+const recTemplate = $('#recordings-panel');
+// The recordings panel: in the studio, with its controls; on a viewer's page at the studio's
+// address, the list and the downloads only; a /?view page (asked for by its address) and the
+// sign-in page keep only the status line's "● REC" indicator, or nothing without a token.
+const recPanel = identity.error || asked.view ? null : recTemplate.content.cloneNode(true).firstElementChild;
+recTemplate.remove();
 if (viewOnly) {
   template.remove();
   $('#mode').textContent = identity.error ? 'sign in' : 'viewer';
   document.title = identity.error ? 'Rheo: sign in' : 'Rheo viewer';
+  if (recPanel) {
+    const aside = document.createElement('aside');
+    aside.className = 'col right';
+    aside.setAttribute('aria-label', 'Recordings');
+    aside.append(recPanel);
+    const layout = $('#layout');
+    layout.classList.add('viewer');
+    layout.append(aside);
+  }
 } else {
   const panels = template.content.cloneNode(true);
   template.remove();
   const layout = $('#layout');
   layout.classList.add('studio');
   const [left, right] = panels.querySelectorAll('aside');
+  right.querySelector('#recordings-slot').replaceWith(recPanel);
   layout.prepend(left);
   layout.append(right);
   const { Studio } = await import('./studio.js');
   studio = new Studio({ rpc, view, report: (m) => showAppAlert(m) });
+}
+if (!identity.error) {
+  const { Recordings } = await import('./recordings.js');
+  const canRecord = !viewOnly && (identity.role === 'ROLE_OPERATOR' || identity.role === 'ROLE_ADMIN');
+  recordings = new Recordings(recPanel, rpc, { canRecord, indicator: $('#st-rec') });
+  window.rheo.recordings = recordings;
 }
 
 function showAppAlert(msg) {
@@ -234,4 +259,5 @@ watchFrames();
 if (rpc.connected) {
   loadScene();
   if (studio) studio.onConnected();
+  if (recordings) recordings.refresh().catch(() => {});
 }

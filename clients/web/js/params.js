@@ -36,6 +36,39 @@ export function formatValue(v) {
   return a >= 1e5 || a < 1e-3 ? v.toExponential(3) : String(Number(v.toPrecision(5)));
 }
 
+function msText(ms) {
+  return ms >= 1000 ? `${(ms / 1000).toFixed(1)} s` : `${ms >= 10 ? Math.round(ms) : ms.toFixed(1)} ms`;
+}
+
+/**
+ * SceneObject.multi_rate in words: "multi-rate: the 64 nodes near the tool every tick, the whole
+ * every 10 ticks (its last step took 49 ms), 2.4 s behind real time". '' when not multi-rate.
+ */
+export function multiRateText(mr) {
+  if (!mr) return '';
+  const nodes = Number(mr.patchInnerNodes || 0);
+  const period = Number(mr.periodTicks || 0);
+  const step = Number(mr.wholeStepMs || 0);
+  const predicted = Number(mr.predictedWholeStepMs || 0);
+  const lag = Number(mr.wholeLagMs || 0);
+  const patch = nodes ? `the ${nodes} nodes near the tool every tick` : 'the nodes near the tool every tick';
+  const whole = `the whole every ${period === 1 ? 'tick' : `${period} ticks`}`;
+  const cost = step > 0 ? ` (its last step took ${msText(step)})` : predicted > 0 ? ` (a step predicted at ${msText(predicted)})` : '';
+  const behind = lag >= 1 ? `${msText(lag)} behind real time` : 'keeping up with real time';
+  return `multi-rate: ${patch}, ${whole}${cost}, ${behind}`;
+}
+
+/** The rest of SceneObject.multi_rate, for a tooltip. */
+function multiRateDetails(mr) {
+  const n = (k) => Number(mr[k] || 0);
+  return [
+    `patch: ${n('patchInnerNodes')} nodes, ${n('patchTets')} tetrahedra, built ${n('patchRebuilds')} times`,
+    `whole step: last ${msText(n('wholeStepMs'))}, longest ${msText(n('wholeStepMaxMs'))}, predicted ${msText(n('predictedWholeStepMs'))}, ${n('wholeSubsteps')} substeps`,
+    `syncs ${n('syncs')}, ticks late ${n('lateTicks')}, whole restores ${n('wholeRestores')}`,
+    `load averaged over ${msText(n('wholeWindowMs'))}; ${msText(n('wholeLagMs'))} behind real time`,
+  ].join('\n');
+}
+
 export class ParamsPanel {
   /**
    * @param {HTMLElement} root  the panel's container
@@ -49,6 +82,8 @@ export class ParamsPanel {
     this.select = root.querySelector('#param-instance');
     this.list = root.querySelector('#param-list');
     this.presets = root.querySelector('#param-presets');
+    this.multiRate = root.querySelector('#param-multirate');
+    this.objects = []; // SceneObjects of the last GetScene
     this.instanceId = 0;
     this.rows = new Map(); // name -> {param, slider, number, server}
     this.pending = new Map(); // name -> value waiting for the debounce
@@ -57,7 +92,39 @@ export class ParamsPanel {
     this.select.addEventListener('change', () => {
       this.userChose = true;
       this.show(Number(this.select.value));
+      this.showMultiRate();
     });
+  }
+
+  /** Whether an object of the last GetScene runs multi-rate (its figures change as it runs). */
+  get anyMultiRate() {
+    return this.objects.some((o) => o.multiRate);
+  }
+
+  optionText(o) {
+    return `#${o.instanceId} ${o.preset || ''}${o.multiRate ? ' · multi-rate' : ''}`.trim();
+  }
+
+  /** The multi-rate line of the chosen object (hidden for the others and the scene). */
+  showMultiRate() {
+    if (!this.multiRate) return;
+    const o = this.objects.find((x) => x.instanceId === this.instanceId);
+    const text = o ? multiRateText(o.multiRate) : '';
+    this.multiRate.hidden = !text;
+    if (this.multiRate.textContent !== text) this.multiRate.textContent = text;
+    this.multiRate.title = text ? multiRateDetails(o.multiRate) : '';
+  }
+
+  /** GetScene again for the multi-rate figures only: the options' labels and the line. */
+  async refreshMultiRate() {
+    const scene = await this.rpc.call('rheo.v1.SceneService/GetScene', {});
+    this.objects = scene.objects || [];
+    for (const opt of this.select.options) {
+      const o = this.objects.find((x) => String(x.instanceId) === opt.value);
+      if (o && opt.textContent !== this.optionText(o)) opt.textContent = this.optionText(o);
+    }
+    this.showMultiRate();
+    return scene;
   }
 
   /** Refreshes the instance selector from GetScene; keeps or picks the selection. */
@@ -69,10 +136,12 @@ export class ParamsPanel {
     const newest = ids.length ? ids[ids.length - 1] : 0;
     const keep = prefer ?? (this.userChose ? this.instanceId : newest);
     this.select.replaceChildren();
+    this.objects = objects;
     for (const o of objects) {
       const opt = document.createElement('option');
       opt.value = String(o.instanceId);
-      opt.textContent = `#${o.instanceId} ${o.preset || ''}`.trim();
+      opt.textContent = this.optionText(o);
+      if (o.multiRate) opt.title = multiRateText(o.multiRate);
       this.select.appendChild(opt);
     }
     const scenOpt = document.createElement('option');
@@ -83,6 +152,7 @@ export class ParamsPanel {
     this.select.value = String(chosen);
     // Rebuilding an unchanged panel would throw away a slider the user is moving.
     if (chosen !== this.instanceId || !this.rows.size) await this.show(chosen);
+    this.showMultiRate();
     return scene;
   }
 

@@ -59,7 +59,16 @@ export class Studio {
     await Promise.allSettled([this.library.refresh(), this.params.refreshScene(), this.loadDevice()]);
   }
 
-  onStatus() {}
+  /** Every status poll (1.5 s): a multi-rate object's figures (lag, step time) move as it runs. */
+  onStatus() {
+    if (this.params.anyMultiRate && !this.multiRateBusy) {
+      this.multiRateBusy = true;
+      this.params
+        .refreshMultiRate()
+        .catch(() => {})
+        .finally(() => (this.multiRateBusy = false));
+    }
+  }
 
   onFrame(frame) {
     // The scene changed (an object added or removed anywhere): refresh the instance list.
