@@ -287,20 +287,26 @@ Result<MultiRate> MultiRate::Create(std::unique_ptr<SimObject> whole, int32_t pe
   mr.whole_ = std::move(whole);
   mr.period_ = period;
   mr.options_ = options;
-  if (Status s = mr.SetWholeParameters(mr.whole_->parameters()); !s.ok()) return s.error();
+  if (Status s = mr.SetParameters(mr.whole_->parameters()); !s.ok()) return s.error();
   const auto x = mr.whole_->positions();
   mr.render_.assign(x.begin(), x.end());
   return mr;
 }
 
-Status MultiRate::SetWholeParameters(const Parameters& given) {
+Parameters MultiRate::WholeParameters(const Parameters& given, int32_t period,
+                                      const PatchOptions& options) {
   // The whole's step covers `period` ticks in substeps of at most whole_substep.
-  const double step = period_ * options_.tick;
+  const double step = period * options.tick;
   Parameters p = given;
-  const int32_t per_tick = SimObject::ImplicitSubsteps(p, options_.tick);
+  const int32_t per_tick = SimObject::ImplicitSubsteps(p, options.tick);
   const double substeps =
-      std::max<double>(per_tick, std::ceil(step / options_.whole_substep - 1e-9));
+      std::max<double>(per_tick, std::ceil(step / options.whole_substep - 1e-9));
   p.implicit_substeps = std::min(substeps, 1000.0);
+  return p;
+}
+
+Status MultiRate::SetParameters(const Parameters& given) {
+  const Parameters p = WholeParameters(given, period_, options_);
   if (Status s = whole_->SetParameters(p); !s.ok()) return s;
   patch_params_ = given;
   whole_substeps_ = static_cast<int32_t>(p.implicit_substeps);
@@ -312,10 +318,6 @@ int32_t MultiRate::RefineWholeSubsteps(int32_t max_substeps) {
   if (next <= whole_substeps_) return whole_substeps_;
   if (whole_->SetParameter("implicit_substeps", next).ok()) whole_substeps_ = next;
   return whole_substeps_;
-}
-
-Status MultiRate::SetParameters(const Parameters& params) {
-  return SetWholeParameters(params);
 }
 
 bool MultiRate::WantsPatch(const Vec3& focus) const {

@@ -201,6 +201,10 @@ class MultiRate {
   /// Duration of the window that the whole's next step takes as its load [s]: the ticks since
   /// the sync before the last. A whole that runs late steps over the time it missed.
   double window_duration() const { return closed_.duration(); }
+  /// `given` with the implicit substeps of one whole step: `period` ticks of options.tick in
+  /// substeps of at most options.whole_substep (and no fewer than a tick takes).
+  static Parameters WholeParameters(const Parameters& given, int32_t period,
+                                    const PatchOptions& options);
   /// New parameters for the whole (its substeps made for its period again) and for the patches
   /// built from now on. The whole's thread; allocates.
   Status SetParameters(const Parameters& params);
@@ -232,9 +236,6 @@ class MultiRate {
   std::unique_ptr<SimObject> whole_;
   std::optional<Patch> patch_;
   PatchOptions options_;
-  /// The whole's parameters with implicit substeps for a step of `period_` ticks.
-  Status SetWholeParameters(const Parameters& given);
-
   Parameters patch_params_;  // the whole's as given (its substeps per tick)
   int32_t period_ = 1;
   int32_t whole_substeps_ = 1;

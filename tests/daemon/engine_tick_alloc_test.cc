@@ -47,18 +47,27 @@ Built MakeBox(const DeviceLink& link, const ToolTelemetry& now, const char* pres
   return b;
 }
 
-TEST(EngineTickAlloc, TheWholeTickAllocatesNothing) {
+// The network tool (no hardware, no real-time priority) and an engine never Start()ed, whose
+// ticks the test thread runs.
+DeviceLinkOptions NetworkTool() {
   DeviceLinkOptions o;
   o.kind = DeviceKind::kNetwork;
   o.realtime = false;
-  auto opened = DeviceLink::Open(o);
-  ASSERT_TRUE(opened.ok()) << opened.error().message;
-  DeviceLink& link = **opened;
+  return o;
+}
+EngineOptions SmallEngine() {
   EngineOptions eo;
   eo.loop.realtime_priority = false;
   eo.loop.lock_memory = false;
   eo.max_frame_vertices = 2000;
-  Engine engine(eo);
+  return eo;
+}
+
+TEST(EngineTickAlloc, TheWholeTickAllocatesNothing) {
+  auto opened = DeviceLink::Open(NetworkTool());
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  DeviceLink& link = **opened;
+  Engine engine(SmallEngine());
   engine.AttachDevice(&link);  // never Start()ed: the test thread runs every tick
 
   const double dt = 1e-3;
@@ -166,17 +175,10 @@ TEST(EngineTickAlloc, TheWholeTickAllocatesNothing) {
 // the syncs taking the whole's results and the patches it built as the tool moved) allocates
 // nothing on the ticking thread; the whole's thread does the allocating.
 TEST(EngineTickAlloc, AMultiRateObjectPressedAllocatesNothingOnTheLoop) {
-  DeviceLinkOptions o;
-  o.kind = DeviceKind::kNetwork;
-  o.realtime = false;
-  auto opened = DeviceLink::Open(o);
+  auto opened = DeviceLink::Open(NetworkTool());
   ASSERT_TRUE(opened.ok()) << opened.error().message;
   DeviceLink& link = **opened;
-  EngineOptions eo;
-  eo.loop.realtime_priority = false;
-  eo.loop.lock_memory = false;
-  eo.max_frame_vertices = 2000;
-  Engine engine(eo);
+  Engine engine(SmallEngine());
   engine.AttachDevice(&link);
 
   Built box = MakeBox(link, engine.tool(), "organ", sim::Integrator::kImplicitEuler, 0.0, true);

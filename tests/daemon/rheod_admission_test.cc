@@ -28,30 +28,9 @@ bool KeepsItsRate(double after, double before) {
   return after >= 990.0 || after >= (kSanitizerBuild ? 0.5 : 0.97) * before;
 }
 
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 // Stores the bean sample at `resolution` [m] and returns its object id.
 std::string StoreBean(RheodProcess& d, double resolution) {
-  auto objects = v1::ObjectService::NewStub(d.channel());
-  v1::CreateObjectRequest req;
-  req.set_name("bean");
-  req.mutable_sketch()->set_strokes_json(ReadText(std::string(RHEO_SKETCHES) + "/bean.json"));
-  req.mutable_mesh_options()->set_resolution(resolution);
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, 180s);
-  auto reader = objects->CreateObject(&ctx, req);
-  v1::CreateObjectProgress p;
-  std::string id;
-  while (reader->Read(&p))
-    if (p.has_object()) id = p.object().id();
-  grpc::Status s = reader->Finish();
-  EXPECT_TRUE(s.ok()) << s.error_message();
-  return id;
+  return StoreSketchFile(d, std::string(RHEO_SKETCHES) + "/bean.json", resolution);
 }
 
 grpc::Status Add(RheodProcess& d, const std::string& id, v1::Integrator integrator,

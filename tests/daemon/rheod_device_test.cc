@@ -23,13 +23,6 @@ std::string SketchPath(const std::string& name) {
   return std::string(RHEO_SKETCHES) + "/" + name;
 }
 
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 double Norm(const v1::Vec3& v) {
   return std::sqrt(v.x() * v.x() + v.y() * v.y() + v.z() * v.z());
 }
@@ -45,20 +38,7 @@ v1::DeviceStatus Status(v1::DeviceService::Stub& stub) {
 // Makes a coarse bean (about 900 tetrahedra, implicit integrator: the loop holds 1 kHz with it),
 // puts it in the scene as hard jelly and waits until it has settled on the floor.
 uint32_t AddBean(RheodProcess& d, const char* sketch = "bean.json") {
-  auto objects = v1::ObjectService::NewStub(d.channel());
-  v1::CreateObjectRequest req;
-  req.set_name(sketch);
-  req.mutable_sketch()->set_strokes_json(ReadText(SketchPath(sketch)));
-  req.mutable_mesh_options()->set_resolution(0.012);
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, 120s);
-  auto reader = objects->CreateObject(&ctx, req);
-  v1::CreateObjectProgress p;
-  std::string id;
-  while (reader->Read(&p))
-    if (p.has_object()) id = p.object().id();
-  grpc::Status s = reader->Finish();
-  EXPECT_TRUE(s.ok()) << s.error_message();
+  const std::string id = StoreSketchFile(d, SketchPath(sketch), 0.012, 120s);
   auto scene = v1::SceneService::NewStub(d.channel());
   grpc::ClientContext actx;
   SetDeadline(actx, 30s);
@@ -70,7 +50,7 @@ uint32_t AddBean(RheodProcess& d, const char* sketch = "bean.json") {
   grip->set_name("friction");
   grip->set_value(5.0);
   v1::SceneObject so;
-  s = scene->AddToScene(&actx, add, &so);
+  grpc::Status s = scene->AddToScene(&actx, add, &so);
   EXPECT_TRUE(s.ok()) << s.error_message();
   // Settled: the object sleeps (or 5 s passed; the tests below do not need it asleep).
   auto frames = v1::FrameService::NewStub(d.channel());

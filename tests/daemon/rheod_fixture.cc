@@ -15,9 +15,11 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <sstream>
 
 #include "rheo/client/channel.h"
 #include "rheo/v1/daemon.grpc.pb.h"
+#include "rheo/v1/objects.grpc.pb.h"
 
 extern char** environ;
 
@@ -217,6 +219,29 @@ grpc::Status CallRaw(const std::shared_ptr<grpc::Channel>& channel, const std::s
   call->Finish(&status, reinterpret_cast<void*>(5));
   step(5);
   return status;
+}
+
+std::string StoreSketchFile(const RheodProcess& d, const std::string& path, double resolution,
+                            std::chrono::seconds deadline) {
+  std::ifstream in(path, std::ios::binary);
+  EXPECT_TRUE(in.good()) << "cannot read " << path;
+  std::stringstream text;
+  text << in.rdbuf();
+  auto objects = v1::ObjectService::NewStub(d.channel());
+  v1::CreateObjectRequest req;
+  req.set_name(std::filesystem::path(path).stem().string());
+  req.mutable_sketch()->set_strokes_json(text.str());
+  req.mutable_mesh_options()->set_resolution(resolution);
+  grpc::ClientContext ctx;
+  SetDeadline(ctx, deadline);
+  auto reader = objects->CreateObject(&ctx, req);
+  v1::CreateObjectProgress p;
+  std::string id;
+  while (reader->Read(&p))
+    if (p.has_object()) id = p.object().id();
+  grpc::Status s = reader->Finish();
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  return id;
 }
 
 std::string DenseStrokeBomb() {

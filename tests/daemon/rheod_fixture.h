@@ -90,6 +90,11 @@ inline grpc::Status CallEmpty(const std::shared_ptr<grpc::Channel>& channel,
   return CallRaw(channel, path, std::string());
 }
 
+/// Stores the stroke sketch in the file at `path` (CreateObject, meshed at `resolution` [m]) and
+/// returns the stored object's id ("" after a failed expectation).
+std::string StoreSketchFile(const RheodProcess& d, const std::string& path, double resolution,
+                            std::chrono::seconds deadline = std::chrono::seconds(180));
+
 /// A sketch of 19,000 short random strokes in a 10-pixel disc: the densest stroke merge the
 /// limits allow (about 2 s in the sketch stage), for tests that need a job that runs a while.
 std::string DenseStrokeBomb();

@@ -109,22 +109,7 @@ grpc::Status Export(const RheodProcess& d, const std::string& id, std::string* b
 // A sketch of samples/ (the bean by default), meshed coarse (under a thousand tetrahedra),
 // stored; its id.
 std::string StoreSample(const RheodProcess& d, const std::string& sketch = "bean") {
-  auto objects = v1::ObjectService::NewStub(d.channel());
-  v1::CreateObjectRequest req;
-  req.set_name(sketch);
-  req.mutable_sketch()->set_strokes_json(
-      ReadText(std::string(RHEO_SKETCHES) + "/" + sketch + ".json"));
-  req.mutable_mesh_options()->set_resolution(0.012);
-  grpc::ClientContext ctx;
-  SetDeadline(ctx, 180s);
-  auto reader = objects->CreateObject(&ctx, req);
-  v1::CreateObjectProgress p;
-  std::string id;
-  while (reader->Read(&p))
-    if (p.has_object()) id = p.object().id();
-  grpc::Status s = reader->Finish();
-  EXPECT_TRUE(s.ok()) << s.error_message();
-  return id;
+  return StoreSketchFile(d, std::string(RHEO_SKETCHES) + "/" + sketch + ".json", 0.012);
 }
 
 grpc::Status AddToScene(const RheodProcess& d, const std::string& id, v1::SceneObject* out) {

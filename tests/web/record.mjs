@@ -3,16 +3,21 @@
 // live); a second start is refused with the daemon's words; Stop lists the recording COMPLETE
 // with its size; Download saves <name>.mcap, a file that begins (and ends) with the MCAP magic;
 // a viewer's page lists it and downloads it but has no control; Delete asks first, then it is
-// gone; rheod killed while recording, the page lists it TRUNCATED after the restart. Writes
-// docs/studio-recordings.png (the studio while a second recording runs).
+// gone; rheod killed while recording, the page lists it TRUNCATED after the restart. With
+// RHEO_DOCS_SCREENSHOTS=1 it writes docs/studio-recordings.png (the studio while a second
+// recording runs); otherwise that picture goes to the system's temporary folder, so a test run
+// leaves the tracked docs alone.
 
 import { run, startDaemon, openPage, assert, pageCall, sleep, createThroughApi } from './harness.mjs';
 import { readFile } from 'node:fs/promises';
 import { fileURLToPath } from 'node:url';
 import { createRequire } from 'node:module';
 import { join } from 'node:path';
+import { tmpdir } from 'node:os';
 
-const shot = fileURLToPath(new URL('../../docs/studio-recordings.png', import.meta.url));
+const shot = process.env.RHEO_DOCS_SCREENSHOTS === '1'
+  ? fileURLToPath(new URL('../../docs/studio-recordings.png', import.meta.url))
+  : join(tmpdir(), 'rheo-studio-recordings.png');
 const MAGIC = Buffer.from([0x89, 0x4d, 0x43, 0x41, 0x50, 0x30, 0x0d, 0x0a]); // \x89 MCAP0 \r\n
 
 const square = JSON.stringify({

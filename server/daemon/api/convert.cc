@@ -2,6 +2,7 @@
 
 #include <sstream>
 
+#include "daemon/record/recorder.h"
 #include "mesh/mesh.h"
 #include "sketch/sketch.h"
 
@@ -148,17 +149,7 @@ void FillDeviceStatus(const DeviceLink& link, v1::DeviceKind kind, const ToolTel
   out->set_in_contact(t.in_contact);
   SetVec(t.object_force, out->mutable_object_force());
   out->set_contact_instance_id(t.contact_instance);
-  v1::DeviceCounters* c = out->mutable_counters();
-  c->set_exchanges(t.exchanges);
-  c->set_device_errors(t.device_errors);
-  c->set_protocol_errors(t.protocol_errors);
-  c->set_deadline_misses(t.deadline_misses);
-  c->set_watchdog_trips(t.watchdog_trips);
-  c->set_recoveries(t.recoveries);
-  c->set_renderer_errors(t.renderer_errors);
-  c->set_calibrations(t.calibrations);
-  c->set_calibration_failures(t.calibration_failures);
-  c->set_tick(t.tick);
+  FillDeviceCounters(t, out->mutable_counters());
   out->set_min_tension(link.min_tension());
   out->set_tip_radius(t.tip_radius);
   out->set_watchdog_timeout_ms(link.watchdog_timeout_ns() / 1e6);

@@ -38,7 +38,7 @@ struct SceneEntry {
   const MultiRateObject* multirate = nullptr;
   std::shared_ptr<const sim::Patch> patch_probe;
   int32_t multirate_period = 0;  // ticks per whole step
-  sim::TickCost whole_cost;      // one whole step
+  sim::TickCost whole_cost;      // one whole step (multi-rate only)
 };
 
 /// Mutex-protected; never touched by the loop.

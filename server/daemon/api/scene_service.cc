@@ -1,6 +1,5 @@
 // SceneService: objects into and out of the loop, material parameters, run control.
 #include <algorithm>
-#include <cmath>
 
 #include "common/format.h"
 #include "daemon/api/convert.h"
@@ -249,7 +248,6 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   std::unique_ptr<MultiRateObject> multirate;
   std::shared_ptr<const sim::Patch> probe;
   sim::TickCost whole_cost;
-  const sim::TickCost full_cost = *cost;
   if (multi) {
     if (ctx_.scene->multirate_count() >= kMaxMultiRateObjects)
       return ToGrpc(ResourceExhausted(
@@ -279,11 +277,10 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
                                     "this object's patch (multi-rate)");
         !s.ok())
       return ToGrpc(s.error());
-    // The whole's step over the period, in substeps of at most po.whole_substep.
+    // The whole's step over the period, with the substeps MultiRate gives it.
     const double period_s = kMultiRatePeriod * tick;
-    sim::Parameters wp = object->parameters();
-    wp.implicit_substeps = std::max<double>(sim::SimObject::ImplicitSubsteps(wp, tick),
-                                            std::ceil(period_s / po.whole_substep - 1e-9));
+    const sim::Parameters wp =
+        sim::MultiRate::WholeParameters(object->parameters(), kMultiRatePeriod, po);
     auto whole_prepared = object->Prepare(wp, integrator, period_s);
     if (!whole_prepared.ok()) return ToGrpc(whole_prepared.error());
     whole_cost = sim::PredictTickCost(object->model(), *whole_prepared, integrator, period_s,
@@ -306,7 +303,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   entry->multirate = multirate.get();
   entry->patch_probe = probe;
   entry->multirate_period = multirate ? kMultiRatePeriod : 0;
-  entry->whole_cost = multirate ? whole_cost : full_cost;
+  entry->whole_cost = whole_cost;
   entry->triangles = std::move(triangles);
   ctx_.scene->Put(entry);
 

@@ -91,11 +91,7 @@ void Engine::Apply(const Command& c) {
     case Command::Type::kReset:
       sim_ticks_ = 0;
       for (int i = 0; i < slot_count_; ++i) {
-        if (slots_[i].multirate) {
-          slots_[i].multirate->RequestReset();
-        } else {
-          slots_[i].object->Reset();
-        }
+        slots_[i].Reset();
         MarkStable(slots_[i]);
       }
       ++scene_revision_;
@@ -161,8 +157,7 @@ void Engine::Tick(const rt::TickInfo& info) {
     for (int i = 0; i < slot_count_; ++i) {
       EngineSlot& slot = slots_[i];
       if (slot.unstable) continue;
-      const sim::StepResult r =
-          slot.multirate ? slot.multirate->Tick(info.dt) : slot.object->Step(info.dt);
+      const sim::StepResult r = slot.Step(info.dt);
       if (!r.restored) continue;
       restores_.fetch_add(1, std::memory_order_relaxed);
       if (info.tick - slot.restore_window_start >= kRestoreWindowTicks) {
@@ -215,17 +210,14 @@ void Engine::Tick(const rt::TickInfo& info) {
       out[3 * k + 1] = static_cast<float>(x[k].y());
       out[3 * k + 2] = static_cast<float>(x[k].z());
     }
-    const MultiRateObject* mr = slot.multirate;
-    const sim::SimObject* o = slot.object;
-    f.objects[f.object_count++] =
-        FrameObject{slot.instance_id,
-                    first,
-                    static_cast<uint32_t>(x.size()),
-                    mr ? mr->sleeping() : o->sleeping(),
-                    mr ? mr->restores() : static_cast<uint64_t>(o->events().restores),
-                    mr ? mr->kinetic_energy() : o->kinetic_energy(),
-                    slot.unstable,
-                    mr != nullptr};
+    f.objects[f.object_count++] = FrameObject{slot.instance_id,
+                                              first,
+                                              static_cast<uint32_t>(x.size()),
+                                              slot.sleeping(),
+                                              slot.restores(),
+                                              slot.kinetic_energy(),
+                                              slot.unstable,
+                                              slot.multirate != nullptr};
     first += static_cast<uint32_t>(x.size());
   }
   f.published_unix_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(

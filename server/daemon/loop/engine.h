@@ -111,9 +111,27 @@ struct EngineSlot {
   ObjectContact* contact = nullptr;
   MultiRateObject* multirate = nullptr;
 
+  // What the loop asks of either kind (loop thread only).
+  /// One tick.
+  sim::StepResult Step(double dt) { return multirate ? multirate->Tick(dt) : object->Step(dt); }
+  /// Back to rest (a multi-rate object at its whole's next step).
+  void Reset() {
+    if (multirate) {
+      multirate->RequestReset();
+    } else {
+      object->Reset();
+    }
+  }
   /// Node positions to render and publish.
   std::span<const Vec3> positions() const {
     return multirate ? multirate->positions() : object->positions();
+  }
+  bool sleeping() const { return multirate ? multirate->sleeping() : object->sleeping(); }
+  uint64_t restores() const {
+    return multirate ? multirate->restores() : static_cast<uint64_t>(object->events().restores);
+  }
+  double kinetic_energy() const {
+    return multirate ? multirate->kinetic_energy() : object->kinetic_energy();
   }
   // An object whose state keeps going non-finite or exploding is stopped (no longer stepped,
   // shown in its last good state) after kRestoresBeforeStop restores within kRestoreWindowTicks,

@@ -97,18 +97,13 @@ sim::StepResult MultiRateObject::Tick(double dt) {
   // iterations a tick), and it would cost the loop a tick's work for nothing.
   if (load_count_ == 0) {
     mr_.IdleTick(dt);
-    restores_ = patch_restores_ + whole_restores_.load(std::memory_order_relaxed);
     sleeping_ = whole_sleeping_;
     return sim::StepResult{};
   }
   stepped_since_sync_ = true;
   const sim::StepResult r =
       mr_.FastTick(std::span<const sim::NodeLoad>(loads_.data(), load_count_), dt);
-  if (r.restored) {
-    ++patch_restores_;
-    patch_restores_a_.fetch_add(1, std::memory_order_relaxed);
-  }
-  restores_ = patch_restores_ + whole_restores_.load(std::memory_order_relaxed);
+  if (r.restored) patch_restores_.fetch_add(1, std::memory_order_relaxed);
   // Asleep when the whole was at its last step and the patch is now (or there is none).
   sleeping_ = whole_sleeping_ && (r.sleeping || mr_.patch() == nullptr);
   return r;
@@ -179,7 +174,7 @@ MultiRateStats MultiRateObject::stats() const {
   s.late_ticks = late_ticks_.load(std::memory_order_relaxed);
   s.rebuilds = rebuilds_.load(std::memory_order_relaxed);
   s.whole_restores = whole_restores_.load(std::memory_order_relaxed);
-  s.patch_restores = patch_restores_a_.load(std::memory_order_relaxed);
+  s.patch_restores = patch_restores_.load(std::memory_order_relaxed);
   s.whole_step_ns = whole_step_ns_.load(std::memory_order_relaxed);
   s.whole_step_max_ns = whole_step_max_ns_.load(std::memory_order_relaxed);
   s.whole_window_s = whole_window_s_.load(std::memory_order_relaxed);

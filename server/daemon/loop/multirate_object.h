@@ -87,7 +87,10 @@ class MultiRateObject {
   /// As of the last sync.
   bool sleeping() const { return sleeping_; }
   double kinetic_energy() const { return kinetic_energy_; }
-  uint64_t restores() const { return restores_; }
+  uint64_t restores() const {
+    return patch_restores_.load(std::memory_order_relaxed) +
+           whole_restores_.load(std::memory_order_relaxed);
+  }
 
   // ---- Any thread.
   MultiRateStats stats() const;
@@ -119,8 +122,6 @@ class MultiRateObject {
   bool sleeping_ = false;
   bool whole_sleeping_ = false;  // as of the last sync
   double kinetic_energy_ = 0.0;
-  uint64_t restores_ = 0;
-  uint64_t patch_restores_ = 0;
 
   // Handed over at a sync (written by one side before the phase changes, read by the other
   // after it: the phase's release and acquire order them).
@@ -136,7 +137,7 @@ class MultiRateObject {
 
   // Counters.
   std::atomic<uint64_t> syncs_{0}, late_ticks_{0}, rebuilds_{0}, whole_restores_{0},
-      patch_restores_a_{0};
+      patch_restores_{0};
   std::atomic<int64_t> whole_step_ns_{0}, whole_step_max_ns_{0};
   std::atomic<double> whole_window_s_{0.0}, whole_lag_s_{0.0};
   std::atomic<int32_t> patch_inner_{0}, patch_tets_{0}, whole_substeps_{0};

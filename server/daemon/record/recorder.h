@@ -35,6 +35,10 @@ inline constexpr const char* kParametersTopic = "/parameters";
 inline constexpr const char* kCommandsTopic = "/commands";
 inline constexpr const char* kLoopTopic = "/loop";
 
+/// The device counters of one tick's tool telemetry, as DeviceStatus and the recording's
+/// `/tool` channel both carry them.
+void FillDeviceCounters(const ToolTelemetry& t, v1::DeviceCounters* out);
+
 struct RecorderOptions {
   std::string dir;                // where <id>.mcap and <id>.json go (created when missing)
   std::string library = "rheod";  // the MCAP header's library field
