@@ -7,15 +7,18 @@
 #include <google/protobuf/descriptor.pb.h>
 #include <gtest/gtest.h>
 #include <sys/mount.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <csignal>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
 #include <thread>
 
+#include "daemon/replay/replay.h"
 #include "record/mcap.h"
 #include "rheo/v1/daemon.grpc.pb.h"
 #include "rheo/v1/device.grpc.pb.h"
@@ -125,6 +128,67 @@ grpc::Status AddToScene(const RheodProcess& d, const std::string& id, v1::SceneO
   return v1::SceneService::NewStub(d.channel())->AddToScene(&ctx, add, out);
 }
 
+grpc::Status Control(const RheodProcess& d, v1::RunCommand command) {
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::ControlRequest req;
+  req.set_command(command);
+  v1::ControlResponse r;
+  return v1::SceneService::NewStub(d.channel())->Control(&ctx, req, &r);
+}
+
+grpc::Status SetParameter(const RheodProcess& d, uint32_t instance_id, const std::string& name,
+                          double value) {
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::SetParametersRequest req;
+  req.set_instance_id(instance_id);
+  auto* p = req.add_parameters();
+  p->set_name(name);
+  p->set_value(value);
+  v1::SetParametersResponse r;
+  return v1::SceneService::NewStub(d.channel())->SetParameters(&ctx, req, &r);
+}
+
+// Runs `command` (a shell line); its exit status and what it printed.
+std::pair<int, std::string> RunCommand(const std::string& command) {
+  std::string out;
+  FILE* p = ::popen((command + " 2>&1").c_str(), "r");
+  if (!p) return {-1, ""};
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  const int status = ::pclose(p);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+// The emulated hand presses 1 cm into the object for 2 s; true once the tool is in contact,
+// pushing (within 30 s: the hand moves over it first).
+bool PressUntilTouching(const RheodProcess& d) {
+  auto dev = v1::DeviceService::NewStub(d.channel());
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::SimulatedHandRequest req;
+    req.mutable_press()->set_depth_m(0.01);
+    req.mutable_press()->set_seconds(2.0);
+    v1::SimulatedHandResponse r;
+    grpc::Status s = dev->SimulatedHand(&ctx, req, &r);
+    EXPECT_TRUE(s.ok()) << s.error_message();
+    if (!s.ok()) return false;
+  }
+  const auto end = std::chrono::steady_clock::now() + 30s;
+  while (std::chrono::steady_clock::now() < end) {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::DeviceStatus st;
+    if (!dev->GetDeviceStatus(&ctx, v1::GetDeviceStatusRequest(), &st).ok()) return false;
+    if (st.in_contact() && st.fault_bits() == 0 && st.wrench().force().y() > 0.1) return true;
+    std::this_thread::sleep_for(50ms);  // polling the daemon's state, not synchronising
+  }
+  return false;
+}
+
 // Messages of a file by topic (each parsed with its channel's type), and the schemas' checks.
 struct Contents {
   std::map<std::string, uint64_t> counts;
@@ -220,42 +284,10 @@ TEST(RheodRecord, RecordsTheToolFramesSceneParametersAndCommands) {
   v1::SceneObject so;
   s = AddToScene(*d, object_id, &so);
   ASSERT_TRUE(s.ok()) << s.error_message();
-  auto dev = v1::DeviceService::NewStub(d->channel());
-  {
-    grpc::ClientContext ctx;
-    SetDeadline(ctx);
-    v1::SimulatedHandRequest req;
-    req.mutable_press()->set_depth_m(0.01);
-    req.mutable_press()->set_seconds(2.0);
-    v1::SimulatedHandResponse r;
-    s = dev->SimulatedHand(&ctx, req, &r);
-    ASSERT_TRUE(s.ok()) << s.error_message();
-  }
-  // Until the tool presses on the heart (the hand moves over it first); then a parameter change,
-  // and half a second more.
-  const auto end = std::chrono::steady_clock::now() + 30s;
-  bool touching = false;
-  while (!touching && std::chrono::steady_clock::now() < end) {
-    grpc::ClientContext ctx;
-    SetDeadline(ctx);
-    v1::DeviceStatus st;
-    ASSERT_TRUE(dev->GetDeviceStatus(&ctx, v1::GetDeviceStatusRequest(), &st).ok());
-    touching = st.in_contact() && st.fault_bits() == 0 && st.wrench().force().y() > 0.1;
-    std::this_thread::sleep_for(50ms);  // polling the daemon's state, not synchronising
-  }
+  const bool touching = PressUntilTouching(*d);
   EXPECT_TRUE(touching) << "the hand did not reach the heart within 30 s";
-  {
-    grpc::ClientContext ctx;
-    SetDeadline(ctx);
-    v1::SetParametersRequest req;
-    req.set_instance_id(so.instance_id());
-    auto* p = req.add_parameters();
-    p->set_name("k_v");
-    p->set_value(500.0);
-    v1::SetParametersResponse r;
-    s = v1::SceneService::NewStub(d->channel())->SetParameters(&ctx, req, &r);
-    ASSERT_TRUE(s.ok()) << s.error_message();
-  }
+  s = SetParameter(*d, so.instance_id(), "k_v", 500.0);
+  ASSERT_TRUE(s.ok()) << s.error_message();
   std::this_thread::sleep_for(500ms);  // recording the press, not synchronising
   const auto running = Find(*d, started.id());
   ASSERT_TRUE(running);
@@ -408,6 +440,108 @@ TEST(RheodRecord, RecordsTheToolFramesSceneParametersAndCommands) {
   EXPECT_EQ(listed->dropped_ticks(), done.dropped_ticks());
   for (const auto& [topic, n] : done.message_counts())
     EXPECT_EQ(listed->message_counts().at(topic), n) << topic;
+  ASSERT_EQ(d->Terminate(10s), 0) << d->log();
+}
+
+// Replay: a session (the heart added, pressed by the emulated hand, a parameter changed, paused,
+// stepped, resumed, reset) re-run offline from its recording gives every frame and every tool
+// sample back bit for bit; a what-if replay on a stiffer object differs, and says by how much;
+// a recording that began with the heart already in the scene says it cannot be exact.
+TEST(RheodReplay, ARecordedSessionReplaysBitForBitAndAWhatIfDiffers) {
+  TempDir dir;
+  auto d = std::make_unique<RheodProcess>(
+      Args(dir.path, {"--device", "sim-spidar-g", "--watchdog-timeout", "100"}));
+  ASSERT_TRUE(d->started()) << d->log();
+  const std::string object_id = StoreSample(*d, "heart");
+  ASSERT_FALSE(object_id.empty());
+  v1::Recording started;
+  grpc::Status s = Start(*d, "replay me", 100.0, &started);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  v1::SceneObject so;
+  s = AddToScene(*d, object_id, &so);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  EXPECT_TRUE(PressUntilTouching(*d)) << "the hand did not reach the heart within 30 s";
+  ASSERT_TRUE(SetParameter(*d, so.instance_id(), "k_v", 500.0).ok());
+  std::this_thread::sleep_for(300ms);  // pressing the changed heart, not synchronising
+  ASSERT_TRUE(Control(*d, v1::RUN_COMMAND_PAUSE).ok());
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(Control(*d, v1::RUN_COMMAND_STEP).ok());
+  ASSERT_TRUE(Control(*d, v1::RUN_COMMAND_RESUME).ok());
+  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(Control(*d, v1::RUN_COMMAND_RESET).ok());
+  std::this_thread::sleep_for(300ms);
+  v1::Recording done;
+  s = Stop(*d, &done);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  ASSERT_EQ(done.state(), v1::RECORDING_STATE_COMPLETE);
+
+  auto r = daemon::ReplayRecording(done.file());
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  std::printf(
+      "replayed %llu ticks in %.2f s: frames %llu of %llu identical, tool %llu of %llu (%llu in "
+      "contact), %llu commands, max position diff %.3g m, max force diff %.3g N\n",
+      static_cast<unsigned long long>(r->ticks), r->wall_s,
+      static_cast<unsigned long long>(r->frames_identical),
+      static_cast<unsigned long long>(r->frames_compared),
+      static_cast<unsigned long long>(r->samples_identical),
+      static_cast<unsigned long long>(r->samples_compared),
+      static_cast<unsigned long long>(r->contact_ticks),
+      static_cast<unsigned long long>(r->commands), r->max_position_diff_m, r->max_force_diff_n);
+  for (const std::string& c : r->caveats) ADD_FAILURE() << "caveat: " << c;
+  EXPECT_EQ(r->ticks, done.last_tick() - done.first_tick() + 1);
+  EXPECT_EQ(r->objects, 1u);
+  // The add, the tool origin, the change, pause, 3 steps, resume and reset.
+  EXPECT_GE(r->commands, 9u);
+  EXPECT_GT(r->contact_ticks, 100u);
+  EXPECT_GT(r->frames_compared, 100u);
+  EXPECT_EQ(r->frames_identical, r->frames_compared)
+      << "first difference at tick " << r->first_difference_tick;
+  EXPECT_EQ(r->samples_identical, r->samples_compared);
+  EXPECT_EQ(r->max_position_diff_m, 0.0);
+  EXPECT_EQ(r->max_force_diff_n, 0.0);
+  EXPECT_TRUE(r->bit_identical());
+
+  // What if the heart had been stiffer (k_v 1000 from the start, against 400 and then 500): the
+  // same hand, other positions and forces.
+  daemon::ReplayOptions stiffer;
+  stiffer.set = {{"k_v", 1000.0}};
+  auto w = daemon::ReplayRecording(done.file(), stiffer);
+  ASSERT_TRUE(w.ok()) << w.error().message;
+  std::printf(
+      "what-if k_v 1000: frames %llu of %llu identical, max position diff %.3g m, max "
+      "force diff %.3g N\n",
+      static_cast<unsigned long long>(w->frames_identical),
+      static_cast<unsigned long long>(w->frames_compared), w->max_position_diff_m,
+      w->max_force_diff_n);
+  EXPECT_FALSE(w->bit_identical());
+  EXPECT_LT(w->frames_identical, w->frames_compared);
+  EXPECT_GT(w->max_position_diff_m, 1e-5);
+  EXPECT_GT(w->max_force_diff_n, 1e-3);
+  daemon::ReplayOptions bad;
+  bad.set = {{"no_such_parameter", 1.0}};
+  EXPECT_FALSE(daemon::ReplayRecording(done.file(), bad).ok());
+
+  // The command line: `rheo replay --check` exits 0 on this file, and says so.
+  auto [code, text] = RunCommand(std::string(RHEO_PATH) + " replay --check " + done.file());
+  EXPECT_EQ(code, 0) << text;
+  EXPECT_NE(text.find("replay: bit-identical"), std::string::npos) << text;
+  auto [bad_code, bad_text] = RunCommand(std::string(RHEO_PATH) + " replay " + dir.path + "/none");
+  EXPECT_EQ(bad_code, 1) << bad_text;
+
+  // A recording started with the heart already in the scene cannot be exact, and says why.
+  s = Start(*d, "late start", 30.0, &started);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  std::this_thread::sleep_for(500ms);
+  s = Stop(*d, &done);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  auto late = daemon::ReplayRecording(done.file());
+  ASSERT_TRUE(late.ok()) << late.error().message;
+  EXPECT_FALSE(late->bit_identical());
+  ASSERT_FALSE(late->caveats.empty());
+  EXPECT_NE(late->caveats[0].find("before the recording started"), std::string::npos)
+      << late->caveats[0];
+  auto [late_code, late_text] =
+      RunCommand(std::string(RHEO_PATH) + " replay --check " + done.file());
+  EXPECT_EQ(late_code, 3) << late_text;
   ASSERT_EQ(d->Terminate(10s), 0) << d->log();
 }
 

@@ -20,9 +20,10 @@ grpc::Status NotApplied(const char* what) {
                       std::string("the loop did not take the ") + what + " within 2 s");
 }
 
-grpc::Status SubmitAndWait(Engine& engine, const Command& c) {
+grpc::Status SubmitAndWait(Engine& engine, const Command& c, uint64_t* seq_out) {
   const uint64_t seq = engine.Submit(c);
   if (seq == 0) return QueueFull();
+  if (seq_out) *seq_out = seq;
   if (!engine.WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("command");
   return grpc::Status::OK;
 }

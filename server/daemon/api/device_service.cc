@@ -2,6 +2,7 @@
 // stream and the emulated hand.
 #include <google/protobuf/util/time_util.h>
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <thread>
@@ -266,12 +267,24 @@ grpc::Status DeviceServiceImpl::SimulatedHand(grpc::ServerContext* context,
   const v1::Press& press = req->press();
   const ToolTelemetry t = ctx_.engine->tool();
   // The press is planned on objects at rest: a surface measured while the object still falls
-  // would be left behind (wait up to 3 s for every vertex to move less than 1 cm/s).
+  // would be left behind (wait up to 3 s of loop time for every vertex to move less than 1 cm/s).
+  // Loop time, not wall time: a loaded machine or a sanitizer build skips periods, and 3 s of wall
+  // time there had left the heart falling under a press aimed at where it was. The wall clock
+  // only caps the wait at 8 s, and a second before the caller's deadline.
   auto snap = ctx_.hub->WaitNewer(0, std::chrono::steady_clock::now() + std::chrono::seconds(2),
                                   [] { return false; });
   if (!snap) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "no frame from the loop yet");
-  const auto settle_end = std::chrono::steady_clock::now() + std::chrono::seconds(3);
-  while (std::chrono::steady_clock::now() < settle_end) {
+  const uint64_t settle_ticks =
+      3'000'000'000ull / std::max<uint64_t>(1, ctx_.engine->loop().options().period_ns);
+  const uint64_t settle_from = snap->frame.tick;
+  auto settle_end = std::chrono::steady_clock::now() + std::chrono::seconds(8);
+  if (context->deadline() != std::chrono::system_clock::time_point::max()) {
+    const auto left = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        context->deadline() - std::chrono::system_clock::now() - std::chrono::seconds(1));
+    settle_end = std::min(settle_end, std::chrono::steady_clock::now() + left);
+  }
+  while (std::chrono::steady_clock::now() < settle_end &&
+         snap->frame.tick - settle_from < settle_ticks) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     auto next = ctx_.hub->WaitNewer(snap->seq, settle_end, [] { return false; });
     if (!next) break;

@@ -52,11 +52,30 @@ v1::SceneEvent MakeSceneEvent(v1::SceneEvent::Kind kind, const SceneEntry& entry
   v1::SceneMesh* m = ev.mutable_mesh();
   m->set_vertex_count(entry.vertex_count);
   m->mutable_triangles()->Add(entry.triangles.begin(), entry.triangles.end());
+  if (entry.has_contact) {
+    const haptics::RendererConfig& rc = entry.contact_config;
+    v1::ContactSetup* c = ev.mutable_contact();
+    SetVec(entry.contact_tool, c->mutable_tool());
+    c->set_tool_radius(rc.tool_radius);
+    c->set_coupling_stiffness(rc.coupling_stiffness);
+    c->set_coupling_damping(rc.coupling_damping);
+    c->set_stability_margin(rc.stability_margin);
+    c->set_static_friction(rc.static_friction);
+    c->set_dynamic_friction(rc.dynamic_friction);
+    c->set_max_step(rc.max_step);
+    c->set_max_surface_speed(rc.max_surface_speed);
+    c->set_rebin_faces_per_tick(rc.rebin_faces_per_tick);
+    c->set_cell_size(rc.cell_size);
+    c->set_device_max_force(rc.device.max_force);
+    c->set_device_max_stiffness(rc.device.max_stiffness);
+    c->set_device_max_force_rate(rc.device.max_force_rate);
+    c->set_device_damping(rc.device.damping);
+    c->set_device_tick(rc.device.tick);
+  }
   if (!mesh) return ev;
-  // AddToScene moves the rest shape's bounding-box centre to entry.position.
-  Eigen::AlignedBox3d box;
-  for (const Vec3& x : mesh->positions) box.extend(x);
-  const Vec3 shift = mesh->positions.empty() ? Vec3::Zero() : Vec3(entry.position - box.center());
+  // AddToScene builds the object on the mesh moved so that its rest shape's centre is at
+  // entry.position: the same sums here give the same doubles.
+  const Vec3 shift = PlacementShift(*mesh, entry.position);
   m->mutable_rest_positions()->Reserve(static_cast<int>(3 * mesh->positions.size()));
   for (const Vec3& x : mesh->positions) {
     const Vec3 p = x + shift;
@@ -70,21 +89,27 @@ v1::SceneEvent MakeSceneEvent(v1::SceneEvent::Kind kind, const SceneEntry& entry
   return ev;
 }
 
-void RecordSceneAdded(const DaemonContext& ctx, const SceneEntry& entry, const TetMesh& mesh) {
+void RecordSceneAdded(const DaemonContext& ctx, const SceneEntry& entry, const TetMesh& mesh,
+                      uint64_t seq) {
   if (!ctx.recorder || !ctx.recorder->recording()) return;
-  ctx.recorder->Post(MakeSceneEvent(v1::SceneEvent::KIND_ADDED, entry, &mesh));
+  v1::SceneEvent ev = MakeSceneEvent(v1::SceneEvent::KIND_ADDED, entry, &mesh);
+  ev.set_command_seq(seq);
+  ctx.recorder->Post(std::move(ev));
 }
 
-void RecordSceneRemoved(const DaemonContext& ctx, const SceneEntry& entry) {
+void RecordSceneRemoved(const DaemonContext& ctx, const SceneEntry& entry, uint64_t seq) {
   if (!ctx.recorder || !ctx.recorder->recording()) return;
-  ctx.recorder->Post(MakeSceneEvent(v1::SceneEvent::KIND_REMOVED, entry, nullptr));
+  v1::SceneEvent ev = MakeSceneEvent(v1::SceneEvent::KIND_REMOVED, entry, nullptr);
+  ev.set_command_seq(seq);
+  ctx.recorder->Post(std::move(ev));
 }
 
-void RecordParameters(const DaemonContext& ctx, const SceneEntry& entry) {
+void RecordParameters(const DaemonContext& ctx, const SceneEntry& entry, uint64_t seq) {
   if (!ctx.recorder || !ctx.recorder->recording()) return;
   v1::ParameterChange change;
   change.set_instance_id(entry.instance_id);
   change.set_preset(entry.preset);
+  change.set_command_seq(seq);
   FillParameters(entry.params, change.mutable_parameters());
   ctx.recorder->Post(std::move(change));
 }

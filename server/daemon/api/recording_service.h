@@ -37,9 +37,11 @@ v1::SceneEvent MakeSceneEvent(v1::SceneEvent::Kind kind, const SceneEntry& entry
                               const TetMesh* mesh);
 /// Hands `entry`'s arrival (with its mesh), departure or parameters to the running recording;
 /// nothing when none runs. Under the scene's mutation mutex, after the loop applied the change.
-void RecordSceneAdded(const DaemonContext& ctx, const SceneEntry& entry, const TetMesh& mesh);
-void RecordSceneRemoved(const DaemonContext& ctx, const SceneEntry& entry);
-void RecordParameters(const DaemonContext& ctx, const SceneEntry& entry);
+/// `seq`: the engine's sequence number of the command that added, removed or changed it.
+void RecordSceneAdded(const DaemonContext& ctx, const SceneEntry& entry, const TetMesh& mesh,
+                      uint64_t seq);
+void RecordSceneRemoved(const DaemonContext& ctx, const SceneEntry& entry, uint64_t seq);
+void RecordParameters(const DaemonContext& ctx, const SceneEntry& entry, uint64_t seq);
 
 /// Records every scene and device command (AddToScene, RemoveFromScene, SetParameters, Control,
 /// Calibrate, EmergencyStop, SimulatedHand and the lease calls) as received, with the status it

@@ -2,6 +2,7 @@
 // instance came from, its material, and the surface topology that frames refer to.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -11,6 +12,7 @@
 
 #include "common/geometry.h"
 #include "daemon/loop/multirate_object.h"
+#include "haptics/haptics.h"
 #include "sim/cost.h"
 #include "sim/multirate.h"
 #include "sim/params.h"
@@ -39,7 +41,34 @@ struct SceneEntry {
   std::shared_ptr<const sim::Patch> patch_probe;
   int32_t multirate_period = 0;  // ticks per whole step
   sim::TickCost whole_cost;      // one whole step (multi-rate only)
+  // The haptic renderer built for it (with a device): its configuration and the tool position
+  // it started from, for the session recording (a replay builds the renderer again from them).
+  bool has_contact = false;
+  haptics::RendererConfig contact_config;
+  Vec3 contact_tool = Vec3::Zero();
 };
+
+/// The translation that moves `mesh`'s rest-shape bounding-box centre to `target` [m].
+inline Vec3 PlacementShift(const TetMesh& mesh, const Vec3& target) {
+  if (mesh.positions.empty()) return Vec3::Zero();
+  Vec3 lo = mesh.positions.front(), hi = lo;
+  for (const Vec3& x : mesh.positions) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  return target - 0.5 * (lo + hi);
+}
+
+/// Where AddToScene puts an object by default: centred over the origin, 2 cm above the floor.
+inline Vec3 DefaultPlacement(const TetMesh& mesh, double floor_height) {
+  double lo = 0.0, hi = 0.0;
+  for (size_t i = 0; i < mesh.positions.size(); ++i) {
+    const double y = mesh.positions[i].y();
+    lo = i == 0 ? y : std::min(lo, y);
+    hi = i == 0 ? y : std::max(hi, y);
+  }
+  return Vec3(0.0, floor_height + 0.02 + 0.5 * (hi - lo), 0.0);
+}
 
 /// Mutex-protected; never touched by the loop.
 class SceneRegistry {

@@ -148,7 +148,18 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
         "adding " + std::to_string(n) + " vertices would pass the scene's limit of " +
         std::to_string(ctx_.engine->options().max_frame_vertices) + " vertices"));
 
-  auto created = sim::SimObject::Create(mesh, params, integrator);
+  // Placement: the rest shape's bounding-box centre goes to `position`; by default the object
+  // stands centred over the origin, 2 cm above the floor. The object is built on the placed
+  // mesh, exactly the positions the session recording keeps (SceneMesh.rest_positions), so
+  // that a replay builds the same object bit for bit.
+  const Vec3 target = req->has_position()
+                          ? Vec3(req->position().x(), req->position().y(), req->position().z())
+                          : DefaultPlacement(mesh, params.floor_height);
+  if (!target.allFinite()) return ToGrpc(InvalidArgument("position has a non-finite coordinate"));
+  TetMesh placed = mesh;
+  const Vec3 shift = PlacementShift(mesh, target);
+  for (Vec3& x : placed.positions) x += shift;
+  auto created = sim::SimObject::Create(placed, params, integrator);
   if (!created.ok()) return ToGrpc(created.error());
   std::unique_ptr<sim::SimObject> object = std::move(created).value();
   // Will it fit the tick, with what the scene already runs? When the client left the
@@ -209,18 +220,6 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
       return ToGrpc(s.error());
   }
 
-  // Placement: the rest shape's bounding-box centre goes to `position`; by default the object
-  // stands centred over the origin, 2 cm above the floor.
-  Eigen::AlignedBox3d box;
-  for (const Vec3& x : mesh.positions) box.extend(x);
-  const Vec3 lo = box.min(), hi = box.max();
-  Vec3 centre = 0.5 * (lo + hi);
-  Vec3 target = req->has_position()
-                    ? Vec3(req->position().x(), req->position().y(), req->position().z())
-                    : Vec3(0, params.floor_height + 0.02 + 0.5 * (hi.y() - lo.y()), 0);
-  if (!target.allFinite()) return ToGrpc(InvalidArgument("position has a non-finite coordinate"));
-  object->Translate(target - centre);
-
   std::vector<uint32_t> triangles;
   triangles.reserve(mesh.surface.size() * 3);
   for (const auto& f : mesh.surface)
@@ -229,6 +228,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   // The haptic side (off the loop): the object's renderer, and for the first object of an empty
   // scene the device's workspace placed over it.
   std::unique_ptr<ObjectContact> contact;
+  Vec3 contact_tool = Vec3::Zero();
   if (ctx_.device_link) {
     auto attached = ctx_.device_link->PrepareObject(mesh.surface, triangles, object->positions(),
                                                     object->model().mass, ctx_.scene->size() == 0,
@@ -241,6 +241,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
       if (ctx_.engine->Submit(oc) == 0) return QueueFull();
     }
     contact = std::move(attached->contact);
+    contact_tool = attached->tool;
   }
 
   // Multi-rate: the patch around the press point is built here to predict the loop's part; the
@@ -305,6 +306,11 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   entry->multirate_period = multirate ? kMultiRatePeriod : 0;
   entry->whole_cost = whole_cost;
   entry->triangles = std::move(triangles);
+  if (contact) {
+    entry->has_contact = true;
+    entry->contact_config = ctx_.device_link->renderer_config();
+    entry->contact_tool = contact_tool;
+  }
   ctx_.scene->Put(entry);
 
   Command c;
@@ -323,7 +329,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
   contact.release();
   if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("object");
   FillSceneObject(*entry, false, false, out);
-  RecordSceneAdded(ctx_, *entry, mesh);
+  RecordSceneAdded(ctx_, *entry, mesh, seq);
   return grpc::Status::OK;
 }
 
@@ -339,9 +345,10 @@ grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
   Command c;
   c.type = Command::Type::kRemoveObject;
   c.instance_id = req->instance_id();
-  if (grpc::Status s = SubmitAndWait(*ctx_.engine, c); !s.ok()) return s;
+  uint64_t seq = 0;
+  if (grpc::Status s = SubmitAndWait(*ctx_.engine, c, &seq); !s.ok()) return s;
   ctx_.scene->Erase(req->instance_id());
-  RecordSceneRemoved(ctx_, *entry);
+  RecordSceneRemoved(ctx_, *entry, seq);
   return grpc::Status::OK;
 }
 
@@ -429,7 +436,7 @@ grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
     }
     ctx_.scene->Put(next);
     if (!ctx_.engine->WaitApplied(seq, kApplyTimeoutNs)) return NotApplied("change");
-    RecordParameters(ctx_, *next);
+    RecordParameters(ctx_, *next, seq);
   }
   FillParameters(updated.front()->params, out->mutable_parameters());
   return grpc::Status::OK;

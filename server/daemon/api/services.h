@@ -94,7 +94,7 @@ grpc::Status QueueFull();
 /// The loop did not apply `what` within kApplyTimeoutNs (UNAVAILABLE).
 grpc::Status NotApplied(const char* what);
 /// Submits a command that owns no memory and waits until the loop applied it.
-grpc::Status SubmitAndWait(Engine& engine, const Command& c);
+grpc::Status SubmitAndWait(Engine& engine, const Command& c, uint64_t* seq = nullptr);
 
 /// Builds the simulation of a stored object and hands it to the loop (AddToScene, and
 /// CreateObject with add_to_scene). `fresh` is the object's mesh when the caller has just built

@@ -4,17 +4,12 @@
 #include <thread>
 
 #include "common/format.h"
+#include "daemon/device/tool_contact.h"
 #include "daemon/device/tool_placement.h"
 #include "drivers/device_factory.h"
 
 namespace rheo::daemon {
 namespace {
-
-class RendererContact final : public ObjectContact {
- public:
-  explicit RendererContact(haptics::Renderer r) : renderer(std::move(r)) {}
-  haptics::Renderer renderer;
-};
 
 std::array<double, 3> A3(const Vec3& v) {
   return {v.x(), v.y(), v.z()};
@@ -37,13 +32,8 @@ Result<DeviceLink::ObjectAttachment> DeviceLink::PrepareObject(
   const Vec3 grip(now.device_position[0] - now.tool_origin[0],
                   now.device_position[1] - now.tool_origin[1],
                   now.device_position[2] - now.tool_origin[2]);
-  double min_mass = 0.0;
-  for (const auto& f : surface)
-    for (int32_t v : f)
-      if (v >= 0 && static_cast<size_t>(v) < masses.size() &&
-          (min_mass == 0.0 || masses[v] < min_mass))
-        min_mass = masses[v];
-  auto made = MakeContact(surface, positions, origin + grip, min_mass);
+  out.tool = origin + grip;
+  auto made = MakeContact(surface, positions, out.tool, MinSurfaceMass(surface, masses));
   if (!made.ok())
     return Error{made.error().code,
                  "the haptic renderer refused this object's surface: " + made.error().message};
@@ -134,13 +124,7 @@ DeviceLink::~DeviceLink() {
 Result<std::unique_ptr<ObjectContact>> DeviceLink::MakeContact(
     std::span<const std::array<int32_t, 3>> surface, std::span<const Vec3> positions,
     const Vec3& tool, double min_node_mass) const {
-  haptics::RendererConfig rc = renderer_config_;
-  if (min_node_mass > 0.0)
-    rc.coupling_stiffness = std::clamp(2.0 * min_node_mass / (rc.device.tick * rc.device.tick), 1.0,
-                                       rc.coupling_stiffness);
-  auto r = haptics::Renderer::Create(rc, surface, positions, tool);
-  if (!r.ok()) return r.error();
-  return std::unique_ptr<ObjectContact>(new RendererContact(std::move(r).value()));
+  return MakeRendererContact(renderer_config_, surface, positions, tool, min_node_mass);
 }
 
 void DeviceLink::EmergencyStop() {
@@ -177,19 +161,7 @@ void DeviceLink::Apply(const Command& c) {
 }
 
 void DeviceLink::Forget(const EngineSlot& slot) {
-  if (slot.object == contact_object_ && slot.multirate == contact_multirate_) {
-    contact_object_ = nullptr;
-    contact_multirate_ = nullptr;
-    forced_count_ = 0;
-  }
-}
-
-void DeviceLink::ReleaseContact() {
-  if (contact_multirate_) contact_multirate_->ClearLoads();
-  if (contact_object_)
-    for (int i = 0; i < forced_count_; ++i)
-      contact_object_->SetExternalForce(forced_nodes_[i], Vec3::Zero());
-  forced_count_ = 0;
+  contact_.Forget(slot);
 }
 
 void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, ToolTelemetry* out) {
@@ -229,60 +201,14 @@ void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, Too
 
   const drivers::ToolState& tool = device_->state();
   const Vec3 position = origin_ + tool.pose.position;
-  // The tool renders against the first object that has a renderer.
-  EngineSlot* target = nullptr;
-  for (EngineSlot& s : slots)
-    if (s.contact) {
-      target = &s;
-      break;
-    }
-  if (!target || target->object != contact_object_ || target->multirate != contact_multirate_) {
-    ReleaseContact();
-    contact_object_ = target ? target->object : nullptr;
-    contact_multirate_ = target ? target->multirate : nullptr;
-  }
+  // The object feels the tool only while the device displays its reaction.
+  const bool loaded = device_->status().faults == drivers::kFaultNone;
+  const ContactTick c = contact_.Update(slots, position, tool.linear_velocity, info.dt, loaded);
+  if (c.instance_id != 0) t_.stiffness = c.stiffness;
+  if (c.renderer_error) ++t_.renderer_errors;
   drivers::Wrench command;
-  Vec3 object_force = Vec3::Zero();
-  bool in_contact = false;
-  Vec3 proxy = position;
-  if (target) {
-    auto& r = static_cast<RendererContact*>(target->contact)->renderer;
-    t_.stiffness = r.effective_stiffness();
-    auto o = r.Update({position, tool.linear_velocity}, target->positions(), info.dt);
-    if (o.ok()) {
-      command.force = o->wrench.force;
-      command.torque = o->wrench.torque;
-      proxy = o->proxy;
-      in_contact = o->in_contact;
-      ReleaseContact();
-      // The object feels the tool only while the device displays its reaction.
-      if (device_->status().faults == drivers::kFaultNone) {
-        if (MultiRateObject* mr = target->multirate) {
-          // The whole's step takes many ticks' loads at once: each goes with its share of the
-          // coupling's stiffness, so that the whole's implicit step holds the coupling as the
-          // spring it is (sim/multirate.h, ForceWindow::ApplyAverage).
-          double norm_sum = 0.0;
-          for (const haptics::NodeForce& nf : o->node_forces) norm_sum += nf.force.norm();
-          for (const haptics::NodeForce& nf : o->node_forces) {
-            const double k = norm_sum > 0.0 ? t_.stiffness * nf.force.norm() / norm_sum : 0.0;
-            if (!mr->AddLoad({nf.node, nf.force, k})) break;
-            object_force += nf.force;
-          }
-        } else {
-          for (const haptics::NodeForce& nf : o->node_forces) {
-            if (forced_count_ >= static_cast<int>(forced_nodes_.size())) break;
-            target->object->SetExternalForce(nf.node, nf.force);
-            forced_nodes_[forced_count_++] = nf.node;
-            object_force += nf.force;
-          }
-        }
-      }
-      if (MultiRateObject* mr = target->multirate) mr->SetFocus(proxy);
-    } else {
-      ++t_.renderer_errors;
-      ReleaseContact();
-    }
-  }
+  command.force = c.force;
+  command.torque = c.torque;
   // The renderer's wrench is the force on the hand: what the strings pull the grip with.
   device_->SetWrench(command);
   // The command leaves now; its reply arrives while the loop sleeps and steps.
@@ -294,23 +220,25 @@ void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, Too
   const drivers::DeviceStatus& st = device_->status();
   t_.connected = st.connected && !link_down_;
   t_.calibrated = st.calibrated;
-  t_.in_contact = in_contact;
+  t_.in_contact = c.in_contact;
+  t_.object_loaded = loaded;
   t_.emergency_stopped = estop_.load(std::memory_order_relaxed);
   t_.watchdog_tripped = dog_ && dog_->tripped();
   t_.watchdog_trips = dog_ ? dog_->trips() : 0;
   t_.faults = st.faults;
-  t_.contact_instance = target ? target->instance_id : 0;
+  t_.contact_instance = c.instance_id;
   t_.num_motors = std::min(st.num_motors, 8);
   t_.device_position = A3(position);
+  t_.device_velocity = A3(tool.linear_velocity);
   const Eigen::Quaterniond& q = tool.pose.orientation;
   t_.device_orientation = {q.w(), q.x(), q.y(), q.z()};
-  t_.proxy = A3(proxy);
+  t_.proxy = A3(c.proxy);
   t_.tool_origin = A3(origin_);
   t_.requested_force = A3(st.requested.force);
   t_.requested_torque = A3(st.requested.torque);
   t_.displayed_force = A3(st.displayed.force);
   t_.displayed_torque = A3(st.displayed.torque);
-  t_.object_force = A3(object_force);
+  t_.object_force = A3(c.object_force);
   for (int i = 0; i < 8; ++i) {
     t_.tensions[i] = i < t_.num_motors ? st.tensions[i] : 0.0;
     t_.lengths[i] = i < t_.num_motors ? st.lengths[i] : 0.0;

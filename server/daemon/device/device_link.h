@@ -11,6 +11,7 @@
 #include "common/geometry.h"
 #include "common/status.h"
 #include "daemon/device/network_device.h"
+#include "daemon/device/tool_contact.h"
 #include "daemon/loop/engine.h"
 #include "drivers/haptic_device.h"
 #include "drivers/spidar_emulator.h"
@@ -69,6 +70,7 @@ class DeviceLink final : public TickDevice {
     /// the device frame's origin, for kSetToolOrigin before the object enters.
     bool sets_origin = false;
     Vec3 tool_origin = Vec3::Zero();
+    Vec3 tool = Vec3::Zero();  // where the renderer took the tool to be [m]
   };
   /// `surface` (the mesh's outward triangles, for the renderer) and `triangles` (the same, 3
   /// indices each, as the scene registry and frames keep them) index `positions` (the object's
@@ -107,7 +109,6 @@ class DeviceLink final : public TickDevice {
  private:
   explicit DeviceLink(const DeviceLinkOptions& options) : options_(options) {}
   void ClearStop();
-  void ReleaseContact();
 
   DeviceLinkOptions options_;
   std::unique_ptr<drivers::SpidarEmulator> emulator_;
@@ -121,11 +122,8 @@ class DeviceLink final : public TickDevice {
   std::atomic<bool> estop_{false};
 
   // Loop thread.
-  Vec3 origin_ = Vec3::Zero();                    // scene position of the device frame's origin [m]
-  sim::SimObject* contact_object_ = nullptr;      // object holding node forces from the tool
-  MultiRateObject* contact_multirate_ = nullptr;  // or the multi-rate object holding them
-  std::array<int32_t, 24> forced_nodes_{};        // nodes with a tool force on contact_object_
-  int forced_count_ = 0;
+  Vec3 origin_ = Vec3::Zero();  // scene position of the device frame's origin [m]
+  ToolContact contact_;         // the tool against the scene
   int healthy_ticks_ = 0;
   bool dog_armed_ = false;
   /// Share of recent exchanges that failed (moving average over about 32 exchanges): past

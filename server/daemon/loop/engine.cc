@@ -150,7 +150,11 @@ void Engine::Apply(const Command& c) {
 void Engine::Tick(const rt::TickInfo& info) {
   Command c;
   // Bounded work per tick: a flood of commands is spread over ticks.
-  for (int i = 0; i < 16 && commands_.Pop(c); ++i) Apply(c);
+  applied_count_ = 0;
+  while (applied_count_ < kMaxCommandsPerTick && commands_.Pop(c)) {
+    Apply(c);
+    applied_[applied_count_++] = AppliedCommand{c.type, c.seq, c.instance_id};
+  }
 
   const bool paused = paused_.load(std::memory_order_relaxed);
   if (!paused || step_once_) {
@@ -181,7 +185,9 @@ void Engine::Tick(const rt::TickInfo& info) {
     tool_scratch_.tick = info.tick;
     tool_.Store(tool_scratch_);
   }
-  if (tick_ring_) tick_ring_->Offer(info, time, paused, tool_scratch_);
+  if (tick_ring_)
+    tick_ring_->Offer(info, time, paused, tool_scratch_,
+                      std::span<const AppliedCommand>(applied_.data(), applied_count_));
 
   LoopFrame& f = frames_.back();
   f.tool = tool_scratch_;

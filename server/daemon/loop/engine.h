@@ -57,6 +57,17 @@ struct Command {
   std::array<double, 3> vec{};       // kSetToolOrigin [m]
 };
 
+/// Most commands the loop applies in one tick (a flood is spread over ticks).
+inline constexpr int kMaxCommandsPerTick = 16;
+
+/// A command as the loop applied it, without its payload: the session recording lists each
+/// tick's, so that a replay applies the same commands at the same ticks.
+struct AppliedCommand {
+  Command::Type type = Command::Type::kNone;
+  uint64_t seq = 0;
+  uint32_t instance_id = 0;
+};
+
 /// Memory the loop no longer uses, to be freed by another thread.
 struct Retired {
   sim::SimObject* object = nullptr;
@@ -75,10 +86,13 @@ struct ToolTelemetry {
   bool in_contact = false;
   bool emergency_stopped = false;
   bool watchdog_tripped = false;
-  uint32_t faults = 0;                      // drivers::Fault bits
-  uint32_t contact_instance = 0;            // scene instance the tool renders against (0: none)
-  int32_t num_motors = 0;                   // entries used in tensions and lengths
-  std::array<double, 3> device_position{};  // grip centre, scene frame [m]
+  uint32_t faults = 0;            // drivers::Fault bits
+  uint32_t contact_instance = 0;  // scene instance the tool renders against (0: none)
+  int32_t num_motors = 0;         // entries used in tensions and lengths
+  /// No device fault this tick: the object under the tool took the renderer's node forces.
+  bool object_loaded = false;
+  std::array<double, 3> device_position{};               // grip centre, scene frame [m]
+  std::array<double, 3> device_velocity{};               // grip velocity, scene frame [m/s]
   std::array<double, 4> device_orientation{1, 0, 0, 0};  // unit quaternion w, x, y, z
   std::array<double, 3> proxy{};                         // proxy centre, scene frame [m]
   std::array<double, 3> tool_origin{};       // scene position of the device frame's origin [m]
@@ -248,6 +262,8 @@ class Engine {
   EngineOptions options_;
   rt::Loop loop_;
   rt::CommandQueue<Command, 1024> commands_;
+  std::array<AppliedCommand, kMaxCommandsPerTick> applied_{};  // this tick's (loop thread)
+  int applied_count_ = 0;
   boost::lockfree::spsc_queue<Retired, boost::lockfree::capacity<2048>> retired_;
   rt::TripleBuffer<LoopFrame> frames_;
   std::atomic<uint64_t> next_seq_{1};

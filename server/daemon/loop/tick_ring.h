@@ -2,10 +2,12 @@
 // lock-free single-producer single-consumer ring, only while a recording is active.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <boost/lockfree/spsc_queue.hpp>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 
 #include "daemon/loop/engine.h"
 #include "rt/loop.h"
@@ -21,19 +23,22 @@ struct TickRecord {
   int64_t start_ns = 0;     // when it started [ns]
   double sim_time = 0.0;    // [s]
   ToolTelemetry tool;
+  uint32_t applied_count = 0;  // commands the loop applied at the start of the tick
+  std::array<AppliedCommand, kMaxCommandsPerTick> applied{};
 };
 
 /// The loop (producer) pushes a TickRecord per tick while a session is active; the recorder
 /// thread (consumer) pops them. The storage is a fixed array inside the object (8192 records of
-/// 520 bytes, 4.3 MB: allocate the ring once, off the loop). A push into a full ring drops the
-/// record and counts it: the loop never waits for the recorder.
+/// 936 bytes, 7.7 MB: allocate the ring once, off the loop). A push into a full ring drops
+/// the record and counts it: the loop never waits for the recorder.
 class TickRing {
  public:
   static constexpr size_t kCapacity = 8192;  // ticks (8.2 s at 1 kHz)
 
   /// Loop thread: offers this tick; does nothing (one relaxed load) unless a session is active.
   /// Never allocates, locks or waits.
-  void Offer(const rt::TickInfo& info, double sim_time, bool paused, const ToolTelemetry& tool) {
+  void Offer(const rt::TickInfo& info, double sim_time, bool paused, const ToolTelemetry& tool,
+             std::span<const AppliedCommand> applied = {}) {
     const uint32_t session = session_.load(std::memory_order_acquire);
     if (session == 0) return;
     TickRecord& r = scratch_;
@@ -44,6 +49,8 @@ class TickRing {
     r.start_ns = info.start_ns;
     r.sim_time = sim_time;
     r.tool = tool;
+    r.applied_count = static_cast<uint32_t>(std::min(applied.size(), r.applied.size()));
+    std::copy_n(applied.begin(), r.applied_count, r.applied.begin());
     if (!ring_.push(r)) dropped_.fetch_add(1, std::memory_order_relaxed);
     last_offered_.store(info.tick, std::memory_order_release);
   }

@@ -75,6 +75,24 @@ void SetVec(const std::array<double, 3>& a, v1::Vec3* out) {
   out->set_z(a[2]);
 }
 
+v1::AppliedCommand::Type AppliedType(Command::Type t) {
+  using T = v1::AppliedCommand;
+  switch (t) {
+    case Command::Type::kPause: return T::TYPE_PAUSE;
+    case Command::Type::kResume: return T::TYPE_RESUME;
+    case Command::Type::kReset: return T::TYPE_RESET;
+    case Command::Type::kStep: return T::TYPE_STEP;
+    case Command::Type::kAddObject: return T::TYPE_ADD_OBJECT;
+    case Command::Type::kRemoveObject: return T::TYPE_REMOVE_OBJECT;
+    case Command::Type::kSetParameters: return T::TYPE_SET_PARAMETERS;
+    case Command::Type::kDeviceCalibrate: return T::TYPE_DEVICE_CALIBRATE;
+    case Command::Type::kDeviceClear: return T::TYPE_DEVICE_CLEAR;
+    case Command::Type::kSetToolOrigin: return T::TYPE_SET_TOOL_ORIGIN;
+    case Command::Type::kNone: break;
+  }
+  return T::TYPE_UNSPECIFIED;
+}
+
 // One tick of the loop as /tool carries it.
 void FillToolSample(const TickRecord& r, v1::ToolSample* s) {
   s->Clear();
@@ -82,6 +100,12 @@ void FillToolSample(const TickRecord& r, v1::ToolSample* s) {
   s->set_sim_time(r.sim_time);
   s->set_paused(r.paused);
   s->set_wake_latency_ns(r.start_ns - r.deadline_ns);
+  for (uint32_t i = 0; i < r.applied_count && i < r.applied.size(); ++i) {
+    v1::AppliedCommand* a = s->add_applied();
+    a->set_type(AppliedType(r.applied[i].type));
+    a->set_command_seq(r.applied[i].seq);
+    a->set_instance_id(r.applied[i].instance_id);
+  }
   const ToolTelemetry& t = r.tool;
   s->set_present(t.present);
   if (!t.present) return;
@@ -93,6 +117,8 @@ void FillToolSample(const TickRecord& r, v1::ToolSample* s) {
   s->set_fault_bits(t.faults);
   s->set_contact_instance_id(t.contact_instance);
   SetVec(t.device_position, s->mutable_device_pose()->mutable_position());
+  SetVec(t.device_velocity, s->mutable_device_velocity());
+  s->set_object_loaded(t.object_loaded);
   v1::Quat* q = s->mutable_device_pose()->mutable_orientation();
   q->set_w(t.device_orientation[0]);
   q->set_x(t.device_orientation[1]);

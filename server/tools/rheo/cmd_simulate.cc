@@ -66,18 +66,13 @@ int RunSimulate(const SimulateOptions& o) {
   }
   sim::Parameters params = preset->params;
   for (const std::string& s : o.sets) {
-    const size_t eq = s.find('=');
+    std::string name;
     double value = 0.0;
-    try {
-      if (eq == std::string::npos) throw std::invalid_argument("no '='");
-      size_t used = 0;
-      value = std::stod(s.substr(eq + 1), &used);
-      if (used != s.size() - eq - 1) throw std::invalid_argument("trailing text");
-    } catch (const std::exception&) {
+    if (!ParseSetting(s, &name, &value)) {
       std::cerr << "rheo simulate: --set expects name=number, got '" << s << "'\n";
       return 1;
     }
-    if (Status st = sim::SetParameterByName(params, s.substr(0, eq), value); !st.ok()) {
+    if (Status st = sim::SetParameterByName(params, name, value); !st.ok()) {
       std::cerr << "rheo simulate: " << st.error().message << "\n";
       return 1;
     }

@@ -8,7 +8,7 @@ int g_exit_code = 0;
 }
 
 int main(int argc, char** argv) {
-  CLI::App app{"rheo: sketch -> contour -> solid -> simulation, offline"};
+  CLI::App app{"rheo: sketch -> contour -> solid -> simulation, and session replay, offline"};
   app.require_subcommand(1);
 #ifdef RHEO_HAVE_SKETCH
   rheo::tools::AddContourCommand(app);
@@ -18,6 +18,9 @@ int main(int argc, char** argv) {
 #endif
 #ifdef RHEO_HAVE_SIM
   rheo::tools::AddSimulateCommand(app);
+#endif
+#ifdef RHEO_HAVE_REPLAY
+  rheo::tools::AddReplayCommand(app);
 #endif
   try {
     app.parse(argc, argv);
