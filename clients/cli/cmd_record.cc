@@ -1,4 +1,5 @@
-// `rheoctl record start|stop|list|export|delete`: session recordings (MCAP files on the daemon).
+// `rheoctl record start|stop|list|export|delete|playback`: session recordings (MCAP files on the
+// daemon), and the playback of rheod --replay.
 #include <google/protobuf/util/time_util.h>
 
 #include <cerrno>
@@ -165,6 +166,39 @@ int Delete(const Global& g, const std::string& id) {
 
 }  // namespace
 
+// rheod --replay: where the playback is, and pause, play, step, seek, speed.
+int Playback(const Global& g, bool pause, bool play, bool step, const double* seek,
+             const double* speed, bool json) {
+  rheo::v1::Playback r;
+  grpc::Status s;
+  if (pause || play || step || seek || speed) {
+    rheo::v1::ControlPlaybackRequest req;
+    if (speed) req.set_speed(*speed);
+    if (seek) req.set_seek_s(*seek);
+    if (pause) req.set_paused(true);
+    if (play) req.set_paused(false);
+    req.set_step(step);
+    s = Unary<rheo::v1::RecordingService>(g, &RecordingStub::ControlPlayback, req, &r);
+  } else {
+    s = Unary<rheo::v1::RecordingService>(g, &RecordingStub::GetPlayback,
+                                          rheo::v1::GetPlaybackRequest(), &r);
+  }
+  if (!s.ok()) return Fail(s);
+  if (json) {
+    std::cout << ToJson(r, true);
+    return 0;
+  }
+  std::printf("%s: %s at %.2f of %.2f s (tick %llu), speed %gx; %llu frames, %llu shown\n",
+              r.file().c_str(),
+              r.ended()    ? "ended"
+              : r.paused() ? "paused"
+                           : "playing",
+              r.position_s(), r.duration_s(), static_cast<unsigned long long>(r.tick()), r.speed(),
+              static_cast<unsigned long long>(r.frames()),
+              static_cast<unsigned long long>(r.frames_shown()));
+  return 0;
+}
+
 void AddRecordCommand(CLI::App& app, const Global& g) {
   struct Args {
     std::string name, id, out;
@@ -198,6 +232,24 @@ void AddRecordCommand(CLI::App& app, const Global& g) {
   auto* del = record->add_subcommand("delete", "delete a recording and its file");
   del->add_option("ID", a->id, "recording id")->required();
   del->callback([&g, a] { g_exit_code = Delete(g, a->id); });
+
+  struct PlayArgs {
+    bool pause = false, play = false, step = false, json = false;
+    double seek = 0.0, speed = 1.0;
+  };
+  auto p = std::make_shared<PlayArgs>();
+  auto* play = record->add_subcommand(
+      "playback", "rheod --replay: where the playback is; pause, play, step, seek, speed");
+  auto* pause_flag = play->add_flag("--pause", p->pause, "pause (every client sees it)");
+  play->add_flag("--play", p->play, "play (at the end: from the start)")->excludes(pause_flag);
+  play->add_flag("--step", p->step, "while paused: the next frame");
+  auto* seek = play->add_option("--seek", p->seek, "go to this time from the first frame [s]");
+  auto* speed = play->add_option("--speed", p->speed, "playback speed, (0, 100]; 1: recorded pace");
+  play->add_flag("--json", p->json, "the Playback as JSON");
+  play->callback([&g, p, seek, speed] {
+    g_exit_code = Playback(g, p->pause, p->play, p->step, seek->count() ? &p->seek : nullptr,
+                           speed->count() ? &p->speed : nullptr, p->json);
+  });
 }
 
 }  // namespace rheoctl

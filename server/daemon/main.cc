@@ -38,6 +38,7 @@
 #include "daemon/loop/tick_ring.h"
 #include "daemon/net/tcp_relay.h"
 #include "daemon/record/recorder.h"
+#include "daemon/replay/player.h"
 #include "daemon/web/gateway.h"
 
 #ifndef RHEO_VERSION
@@ -71,6 +72,7 @@ struct Flags {
   std::string listen = "127.0.0.1:50051";
   std::string data_dir;
   std::string recording_dir;  // "": DATA_DIR/recordings
+  std::string replay;         // a recording to play back instead of simulating
   std::string device = "none";
   std::string device_config;  // "": the X5 frame file from the install or the source tree
   std::string device_port;
@@ -214,6 +216,9 @@ int main(int argc, char** argv) {
   app.add_option("--recording-dir", flags.recording_dir,
                  "where session recordings (MCAP files) are written")
       ->default_str("DATA_DIR/recordings");
+  app.add_option("--replay", flags.replay,
+                 "play back this recording (.mcap) to every client at its recorded pace instead "
+                 "of simulating: pause, seek and speed with rheoctl record playback; no device");
   app.add_option("--device", flags.device,
                  "haptic device: none, sim-spidar-g (the emulator behind the real driver), "
                  "spidar-g (hardware on --device-port) or network (a client's ToolStream)")
@@ -409,6 +414,13 @@ int main(int argc, char** argv) {
   JobPool<JobEvent> jobs(workers, flags.max_jobs,
                          [](rheo::Error e) { return JobEvent::Failed(std::move(e)); });
 
+  if (!flags.replay.empty() && flags.device != "none") {
+    spdlog::error(
+        "--replay plays a recording back without a device (the hand in it is the recorded one); "
+        "leave out --device {}",
+        flags.device);
+    return 1;
+  }
   // The device is opened and calibrated before the loop starts; the loop then owns its ticks.
   std::unique_ptr<DeviceLink> device;
   rheo::v1::DeviceKind device_kind = rheo::v1::DEVICE_KIND_NONE;
@@ -472,7 +484,34 @@ int main(int argc, char** argv) {
 
   SceneRegistry scene;
   FrameHub hub(engine);
-  hub.Start();
+  // --replay: the player, not the loop, fills the frame hub, and the scene registry holds the
+  // objects of the frame it shows.
+  std::unique_ptr<RecordingPlayer> player;
+  if (!flags.replay.empty()) {
+    auto opened = RecordingPlayer::Open(
+        flags.replay, hub, [&scene](const std::vector<const rheo::v1::SceneEvent*>& objects) {
+          for (const auto& e : scene.All()) {
+            bool keep = false;
+            for (const auto* ev : objects)
+              keep = keep || ev->object().instance_id() == e->instance_id;
+            if (!keep) scene.Erase(e->instance_id);
+          }
+          for (const auto* ev : objects)
+            if (!scene.Find(ev->object().instance_id())) scene.Put(EntryFromSceneEvent(*ev));
+        });
+    if (!opened.ok()) {
+      spdlog::error("--replay {}: {}", flags.replay, opened.error().message);
+      engine.Stop();
+      return 1;
+    }
+    player = std::move(opened).value();
+    const auto st = player->state();
+    spdlog::info("playing back {}: {} frames over {:.1f} s", flags.replay, st.frames,
+                 st.duration_s);
+    player->Start();
+  } else {
+    hub.Start();
+  }
 
   std::atomic<bool> shutting_down{false};
   DaemonContext ctx;
@@ -526,6 +565,7 @@ int main(int argc, char** argv) {
   }
   spdlog::info("recordings in {}: {}", recorder_options.dir, *found);
   ctx.recorder = &recorder;
+  ctx.player = player.get();
   spdlog::info(
       "tick cost model: {:.2f} ns per element and explicit substep, {:.2f} per implicit substep, "
       "{:.2f} per CG iteration; {}",

@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -22,7 +23,7 @@
 #include "record/mcap.h"
 #include "rheo/v1/daemon.grpc.pb.h"
 #include "rheo/v1/device.grpc.pb.h"
-#include "rheo/v1/frames.pb.h"
+#include "rheo/v1/frames.grpc.pb.h"
 #include "rheo/v1/objects.grpc.pb.h"
 #include "rheo/v1/recording.grpc.pb.h"
 #include "rheo/v1/scene.grpc.pb.h"
@@ -543,6 +544,176 @@ TEST(RheodReplay, ARecordedSessionReplaysBitForBitAndAWhatIfDiffers) {
       RunCommand(std::string(RHEO_PATH) + " replay --check " + done.file());
   EXPECT_EQ(late_code, 3) << late_text;
   ASSERT_EQ(d->Terminate(10s), 0) << d->log();
+}
+
+grpc::Status Playback(const RheodProcess& d, const v1::ControlPlaybackRequest* control,
+                      v1::Playback* out) {
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  if (control) return Recordings(d)->ControlPlayback(&ctx, *control, out);
+  return Recordings(d)->GetPlayback(&ctx, v1::GetPlaybackRequest(), out);
+}
+
+// rheod --replay: a recording played back to WatchFrames as the loop would send it (the
+// recorded positions bit for bit, the surfaces, the tool), the scene following it, changes to
+// the scene refused in words, and pause, step, seek, speed and the end for every client.
+TEST(RheodReplay, RheodPlaysARecordingBackWithPauseStepSeekAndSpeed) {
+  TempDir dir;
+  std::string file;
+  uint32_t instance_id = 0;
+  std::map<uint64_t, v1::Frame> recorded;  // by tick
+  {
+    auto d = std::make_unique<RheodProcess>(
+        Args(dir.path, {"--device", "sim-spidar-g", "--watchdog-timeout", "100"}));
+    ASSERT_TRUE(d->started()) << d->log();
+    const std::string object_id = StoreSample(*d, "heart");
+    v1::Recording started, done;
+    ASSERT_TRUE(Start(*d, "to play back", 50.0, &started).ok());
+    v1::SceneObject so;
+    ASSERT_TRUE(AddToScene(*d, object_id, &so).ok());
+    instance_id = so.instance_id();
+    EXPECT_TRUE(PressUntilTouching(*d));
+    std::this_thread::sleep_for(1s);
+    ASSERT_TRUE(Stop(*d, &done).ok());
+    file = done.file();
+    // Not playing back: the playback calls say so.
+    v1::Playback none;
+    EXPECT_EQ(Playback(*d, nullptr, &none).error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+    ASSERT_EQ(d->Terminate(10s), 0) << d->log();
+    auto reader = McapReader::OpenFile(file);
+    ASSERT_TRUE(reader.ok());
+    Contents c = ReadContents(*reader);
+    for (auto& [t, f] : c.frames) recorded[f.stamp().tick()] = f;
+  }
+  ASSERT_GT(recorded.size(), 100u);
+
+  // A file that is not there: rheod does not start, and says why.
+  {
+    RheodProcess bad(Args(dir.path + "/b", {"--replay", dir.path + "/none.mcap"}));
+    EXPECT_FALSE(bad.started());
+    EXPECT_NE(bad.log().find("--replay"), std::string::npos) << bad.log();
+  }
+  TempDir dir2;
+  RheodProcess d(Args(dir2.path, {"--replay", file}));
+  ASSERT_TRUE(d.started()) << d.log();
+  v1::Playback pb;
+  ASSERT_TRUE(Playback(d, nullptr, &pb).ok());
+  EXPECT_EQ(pb.file(), file);
+  EXPECT_EQ(pb.frames(), recorded.size());
+  EXPECT_GT(pb.duration_s(), 2.0);
+  EXPECT_FALSE(pb.paused());
+
+  // Frames as WatchFrames sends them: the heart's recorded positions, its surface first.
+  {
+    auto frames = v1::FrameService::NewStub(d.channel());
+    grpc::ClientContext fctx;
+    SetDeadline(fctx, 20s);
+    v1::WatchFramesRequest w;
+    w.set_rate_hz(100);
+    w.set_positions(true);
+    w.set_max_frames(60);
+    auto reader = frames->WatchFrames(&fctx, w);
+    v1::Frame f;
+    int got = 0, same = 0, with_topology = 0, with_tool = 0;
+    while (reader->Read(&f)) {
+      ++got;
+      with_topology += f.topology_size() > 0;
+      with_tool += f.tool().present();
+      auto it = recorded.find(f.stamp().tick());
+      if (it == recorded.end() || f.objects_size() != it->second.objects_size()) continue;
+      bool all = true;
+      for (int i = 0; i < f.objects_size(); ++i) {
+        const auto& a = f.objects(i).positions();
+        const auto& b = it->second.objects(i).positions();
+        all = all && f.objects(i).instance_id() == it->second.objects(i).instance_id() &&
+              a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin());
+      }
+      same += all;
+    }
+    ASSERT_TRUE(reader->Finish().ok());
+    EXPECT_EQ(got, 60);
+    EXPECT_GE(with_topology, 1);
+    EXPECT_EQ(same, got) << "frames that are not the recording's";
+    EXPECT_GT(with_tool, 50);
+    std::printf("played back: %d frames, %d as recorded, %d with the tool\n", got, same, with_tool);
+  }
+  // The scene follows the recording; changing it is refused, in words.
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(ctx);
+    v1::Scene scene;
+    ASSERT_TRUE(
+        v1::SceneService::NewStub(d.channel())->GetScene(&ctx, v1::GetSceneRequest(), &scene).ok());
+    ASSERT_EQ(scene.objects_size(), 1);
+    EXPECT_EQ(scene.objects(0).instance_id(), instance_id);
+    EXPECT_EQ(scene.objects(0).preset(), "hard-jelly");
+  }
+  v1::SceneObject so;
+  grpc::Status s = AddToScene(d, "anything", &so);
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_NE(s.error_message().find("playing back"), std::string::npos) << s.error_message();
+  EXPECT_EQ(SetParameter(d, instance_id, "k_v", 1.0).error_code(),
+            grpc::StatusCode::FAILED_PRECONDITION);
+  v1::Recording rec;
+  EXPECT_EQ(Start(d, "x", 10.0, &rec).error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+
+  // Pause holds the frame; step shows the next; seek goes there; speed 4 plays four times as
+  // fast; past the end it stops there; Control PAUSE/RESUME/RESET act on the playback too.
+  v1::ControlPlaybackRequest req;
+  req.set_paused(true);
+  ASSERT_TRUE(Playback(d, &req, &pb).ok());
+  EXPECT_TRUE(pb.paused());
+  std::this_thread::sleep_for(200ms);  // the player takes the pause at its next frame
+  ASSERT_TRUE(Playback(d, nullptr, &pb).ok());
+  const uint64_t held = pb.tick();
+  std::this_thread::sleep_for(400ms);
+  ASSERT_TRUE(Playback(d, nullptr, &pb).ok());
+  EXPECT_EQ(pb.tick(), held) << "a paused playback moved";
+  req.Clear();
+  req.set_step(true);
+  ASSERT_TRUE(Playback(d, &req, &pb).ok());
+  std::this_thread::sleep_for(200ms);
+  ASSERT_TRUE(Playback(d, nullptr, &pb).ok());
+  auto next = recorded.upper_bound(held);
+  ASSERT_NE(next, recorded.end());
+  EXPECT_EQ(pb.tick(), next->first) << "a step shows the next recorded frame";
+  req.Clear();
+  req.set_seek_s(1.0);
+  ASSERT_TRUE(Playback(d, &req, &pb).ok());
+  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(Playback(d, nullptr, &pb).ok());
+  EXPECT_NEAR(pb.position_s(), 1.0, 0.05);
+  EXPECT_TRUE(pb.paused());
+  req.Clear();
+  req.set_speed(4.0);
+  req.set_paused(false);
+  ASSERT_TRUE(Playback(d, &req, &pb).ok());
+  std::this_thread::sleep_for(500ms);  // playing, not synchronising
+  ASSERT_TRUE(Playback(d, nullptr, &pb).ok());
+  EXPECT_GT(pb.position_s(), 1.8) << "speed 4 for 0.5 s from 1 s";
+  EXPECT_EQ(pb.speed(), 4.0);
+  req.Clear();
+  req.set_speed(0.0);
+  EXPECT_EQ(Playback(d, &req, &pb).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  req.Clear();
+  req.set_seek_s(1e9);
+  ASSERT_TRUE(Playback(d, &req, &pb).ok());
+  std::this_thread::sleep_for(500ms);
+  ASSERT_TRUE(Playback(d, nullptr, &pb).ok());
+  EXPECT_TRUE(pb.ended());
+  EXPECT_TRUE(pb.paused());
+  EXPECT_NEAR(pb.position_s(), pb.duration_s(), 1e-9);
+  ASSERT_TRUE(Control(d, v1::RUN_COMMAND_RESET).ok());  // to the start (still paused)
+  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(Playback(d, nullptr, &pb).ok());
+  EXPECT_LT(pb.position_s(), 0.05);
+  EXPECT_FALSE(pb.ended());
+  ASSERT_TRUE(Control(d, v1::RUN_COMMAND_RESUME).ok());
+  std::this_thread::sleep_for(500ms);
+  ASSERT_TRUE(Playback(d, nullptr, &pb).ok());
+  EXPECT_FALSE(pb.paused());
+  EXPECT_GT(pb.position_s(), 0.5);  // still at speed 4
+  EXPECT_EQ(d.Terminate(10s), 0) << d.log();
 }
 
 TEST(RheodRecord, ASigkilledRecordingIsListedTruncatedWithItsCompleteChunks) {

@@ -85,6 +85,7 @@ const std::vector<MethodRule>& MethodTable() {
       {"/rheo.v1.RecordingService/ListRecordings", V, false},
       // A recording's file can be large: each export counts against the calls per second.
       {"/rheo.v1.RecordingService/ExportRecording", V, false, metered},
+      {"/rheo.v1.RecordingService/GetPlayback", V, false},
       // Anyone who can see the device may stop it (clearing it needs the lease: the handler).
       {"/rheo.v1.DeviceService/EmergencyStop", V, true},
       // Operating.
@@ -104,6 +105,7 @@ const std::vector<MethodRule>& MethodTable() {
       {"/rheo.v1.RecordingService/StartRecording", O, true},
       {"/rheo.v1.RecordingService/StopRecording", O, true},
       {"/rheo.v1.RecordingService/DeleteRecording", O, true},
+      {"/rheo.v1.RecordingService/ControlPlayback", O, true},
       // Administering.
       {"/rheo.v1.ObjectService/DeleteObject", A, true},
       {"/rheo.v1.DeviceService/RevokeLease", A, true},

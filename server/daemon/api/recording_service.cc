@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <set>
 #include <string_view>
@@ -15,6 +16,7 @@
 #include "daemon/api/convert.h"
 #include "daemon/api/grpc_status.h"
 #include "daemon/api/limits.h"
+#include "daemon/replay/player.h"
 
 namespace rheo::daemon {
 namespace {
@@ -118,6 +120,7 @@ grpc::Status RecordingServiceImpl::StartRecording(grpc::ServerContext*,
                                                   const v1::StartRecordingRequest* req,
                                                   v1::Recording* out) {
   if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
+  if (grpc::Status s = RefuseWhilePlayingBack(ctx_, "a new recording"); !s.ok()) return s;
   if (!ctx_.recorder) return NoRecorder();
   if (grpc::Status s = CheckName(req->name()); !s.ok()) return s;
   const double hz = req->has_frames_hz() ? req->frames_hz() : 60.0;
@@ -291,6 +294,86 @@ grpc::experimental::Interceptor* RecordingInterceptorFactory::CreateServerInterc
     grpc::experimental::ServerRpcInfo* info) {
   if (!recorder_ || !info->method() || !RecordedMethods().count(info->method())) return nullptr;
   return new RecordingInterceptor(info, recorder_);
+}
+
+grpc::Status RefuseWhilePlayingBack(const DaemonContext& ctx, const char* what) {
+  if (!ctx.player) return grpc::Status::OK;
+  return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                      std::string("rheod is playing back ") + ctx.player->state().file +
+                          " (--replay): the scene follows the recording, so " + what +
+                          " is not taken; pause, seek or change the speed with ControlPlayback "
+                          "(rheoctl record playback), or run rheod without --replay");
+}
+
+std::shared_ptr<SceneEntry> EntryFromSceneEvent(const v1::SceneEvent& ev) {
+  auto e = std::make_shared<SceneEntry>();
+  const v1::SceneObject& so = ev.object();
+  e->instance_id = so.instance_id();
+  e->object_id = so.object_id();
+  e->preset = so.preset();
+  e->integrator = so.integrator() == v1::INTEGRATOR_IMPLICIT ? sim::Integrator::kImplicitEuler
+                                                             : sim::Integrator::kSymplecticEuler;
+  if (auto preset = sim::FindPreset(so.preset().empty() ? "soft-jelly" : so.preset()); preset.ok())
+    e->params = preset->params;
+  for (const v1::Parameter& p : so.parameters())
+    (void)sim::SetParameterByName(e->params, p.name(), p.value());
+  e->position = Vec3(so.position().x(), so.position().y(), so.position().z());
+  e->vertex_count = ev.mesh().vertex_count();
+  e->triangles.assign(ev.mesh().triangles().begin(), ev.mesh().triangles().end());
+  e->cost.ns = so.predicted_tick_us() * 1e3;
+  return e;
+}
+
+namespace {
+void FillPlayback(const PlaybackState& st, v1::Playback* out) {
+  out->set_file(st.file);
+  out->set_duration_s(st.duration_s);
+  out->set_position_s(st.position_s);
+  out->set_paused(st.paused);
+  out->set_ended(st.ended);
+  out->set_speed(st.speed);
+  out->set_tick(st.tick);
+  out->set_frames(st.frames);
+  out->set_frames_shown(st.frames_shown);
+}
+
+grpc::Status NotPlayingBack() {
+  return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                      "this rheod plays back no recording (start it with --replay FILE)");
+}
+}  // namespace
+
+grpc::Status RecordingServiceImpl::GetPlayback(grpc::ServerContext*,
+                                               const v1::GetPlaybackRequest* req,
+                                               v1::Playback* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
+  if (!ctx_.player) return NotPlayingBack();
+  FillPlayback(ctx_.player->state(), out);
+  return grpc::Status::OK;
+}
+
+grpc::Status RecordingServiceImpl::ControlPlayback(grpc::ServerContext*,
+                                                   const v1::ControlPlaybackRequest* req,
+                                                   v1::Playback* out) {
+  if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
+  if (!ctx_.player) return NotPlayingBack();
+  RecordingPlayer& p = *ctx_.player;
+  if (req->has_speed())
+    if (Status s = p.SetSpeed(req->speed()); !s.ok()) return ToGrpc(s.error());
+  if (req->has_seek_s()) {
+    if (!std::isfinite(req->seek_s()))
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "seek_s must be a finite time [s]");
+    p.Seek(req->seek_s());
+  }
+  if (req->has_paused()) p.SetPaused(req->paused());
+  if (req->step()) {
+    if (!p.state().paused)
+      return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                          "step shows the next frame of a paused playback; pause it first");
+    p.StepFrame();
+  }
+  FillPlayback(p.state(), out);
+  return grpc::Status::OK;
 }
 
 }  // namespace rheo::daemon

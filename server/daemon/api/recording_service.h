@@ -25,10 +25,18 @@ class RecordingServiceImpl final : public v1::RecordingService::Service {
                                grpc::ServerWriter<v1::RecordingChunk>*) override;
   grpc::Status DeleteRecording(grpc::ServerContext*, const v1::DeleteRecordingRequest*,
                                v1::DeleteRecordingResponse*) override;
+  grpc::Status GetPlayback(grpc::ServerContext*, const v1::GetPlaybackRequest*,
+                           v1::Playback*) override;
+  grpc::Status ControlPlayback(grpc::ServerContext*, const v1::ControlPlaybackRequest*,
+                               v1::Playback*) override;
 
  private:
   const DaemonContext& ctx_;
 };
+
+/// The registry entry a played-back object shows as (rheod --replay): its /scene event's
+/// preset, integrator, parameters, position and surface.
+std::shared_ptr<SceneEntry> EntryFromSceneEvent(const v1::SceneEvent& ev);
 
 /// A /scene event for `entry`: the object as GetScene reports it and, unless kind is
 /// KIND_REMOVED, `mesh` (the stored rest shape) moved to where the entry placed it. Called under

@@ -8,6 +8,7 @@
 #include "daemon/api/recording_service.h"
 #include "daemon/api/services.h"
 #include "daemon/device/tool_placement.h"
+#include "daemon/replay/player.h"
 #include "sim/cost.h"
 #include "sim/multirate.h"
 #include "sim/sim.h"
@@ -117,6 +118,7 @@ grpc::Status SceneServiceImpl::AddToScene(grpc::ServerContext*, const v1::AddToS
 grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneRequest& request,
                               const TetMesh* fresh, v1::SceneObject* out) {
   const v1::AddToSceneRequest* req = &request;
+  if (grpc::Status s = RefuseWhilePlayingBack(ctx_, "an object added"); !s.ok()) return s;
   if (req->object_id().empty()) return ToGrpc(InvalidArgument("object_id is empty"));
   const std::string preset_name = req->preset().empty() ? "soft-jelly" : req->preset();
   auto preset = sim::FindPreset(preset_name);
@@ -337,6 +339,7 @@ grpc::Status SceneServiceImpl::RemoveFromScene(grpc::ServerContext*,
                                                const v1::RemoveFromSceneRequest* req,
                                                v1::RemoveFromSceneResponse*) {
   if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
+  if (grpc::Status s = RefuseWhilePlayingBack(ctx_, "an object removed"); !s.ok()) return s;
   std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
   const auto entry = ctx_.scene->Find(req->instance_id());
   if (!entry)
@@ -356,6 +359,7 @@ grpc::Status SceneServiceImpl::SetParameters(grpc::ServerContext*,
                                              const v1::SetParametersRequest* req,
                                              v1::SetParametersResponse* out) {
   if (grpc::Status s = CheckRequest(*req); !s.ok()) return s;
+  if (grpc::Status s = RefuseWhilePlayingBack(ctx_, "a parameter change"); !s.ok()) return s;
   std::lock_guard<std::mutex> mutation(ctx_.scene->mutation_mutex());
   std::vector<std::shared_ptr<const SceneEntry>> targets;
   if (req->instance_id() == 0) {
@@ -464,6 +468,28 @@ grpc::Status SceneServiceImpl::ListParameters(grpc::ServerContext*,
 grpc::Status SceneServiceImpl::Control(grpc::ServerContext*, const v1::ControlRequest* request,
                                        v1::ControlResponse* out) {
   if (grpc::Status s = CheckRequest(*request); !s.ok()) return s;
+  if (ctx_.player) {
+    // Played back: pause, resume and step act on the playback, reset goes to its start.
+    RecordingPlayer& p = *ctx_.player;
+    switch (request->command()) {
+      case v1::RUN_COMMAND_PAUSE: p.SetPaused(true); break;
+      case v1::RUN_COMMAND_RESUME: p.SetPaused(false); break;
+      case v1::RUN_COMMAND_RESET: p.Seek(0.0); break;
+      case v1::RUN_COMMAND_STEP:
+        if (!p.state().paused)
+          return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                              "STEP shows the next frame of a paused playback; pause it first");
+        p.StepFrame();
+        break;
+      default:
+        return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                            "command must be PAUSE, RESUME, RESET or STEP");
+    }
+    const PlaybackState st = p.state();
+    out->set_paused(st.paused);
+    out->set_sim_time(st.position_s);
+    return grpc::Status::OK;
+  }
   Command c;
   switch (request->command()) {
     case v1::RUN_COMMAND_PAUSE: c.type = Command::Type::kPause; break;

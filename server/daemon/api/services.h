@@ -29,7 +29,8 @@
 
 namespace rheo::daemon {
 
-class Recorder;  // daemon/record/recorder.h
+class Recorder;         // daemon/record/recorder.h
+class RecordingPlayer;  // daemon/replay/player.h
 
 /// One event of an object-creation job: progress, or the error that ended it.
 struct JobEvent {
@@ -66,7 +67,14 @@ struct DaemonContext {
   sim::CostCoefficients tick_cost;
   double sim_budget_ns = 600'000.0;
   Recorder* recorder = nullptr;  // session recording; null: none
+  // rheod --replay: the recording played back into the frame hub (the loop then simulates
+  // nothing, and the scene follows the recording); null otherwise.
+  RecordingPlayer* player = nullptr;
 };
+
+/// FAILED_PRECONDITION for a request that would change the scene while rheod plays back a
+/// recording (rheod --replay); OK otherwise.
+grpc::Status RefuseWhilePlayingBack(const DaemonContext& ctx, const char* what);
 
 /// What a frame carries besides the objects' states: each object's surface (topology), its
 /// positions, as floats or quantized.

@@ -20,8 +20,8 @@ Result<std::unique_ptr<ObjectContact>> MakeRendererContact(
     std::span<const Vec3> positions, const Vec3& tool, double min_mass) {
   haptics::RendererConfig rc = config;
   if (min_mass > 0.0)
-    rc.coupling_stiffness = std::clamp(2.0 * min_mass / (rc.device.tick * rc.device.tick), 1.0,
-                                       rc.coupling_stiffness);
+    rc.coupling_stiffness =
+        std::clamp(2.0 * min_mass / (rc.device.tick * rc.device.tick), 1.0, rc.coupling_stiffness);
   auto r = haptics::Renderer::Create(rc, surface, positions, tool);
   if (!r.ok()) return r.error();
   return std::unique_ptr<ObjectContact>(new RendererContact(std::move(r).value()));
@@ -38,7 +38,8 @@ void ToolContact::Forget(const EngineSlot& slot) {
 void ToolContact::Release() {
   if (multirate_) multirate_->ClearLoads();
   if (object_)
-    for (int i = 0; i < forced_count_; ++i) object_->SetExternalForce(forced_nodes_[i], Vec3::Zero());
+    for (int i = 0; i < forced_count_; ++i)
+      object_->SetExternalForce(forced_nodes_[i], Vec3::Zero());
   forced_count_ = 0;
 }
 

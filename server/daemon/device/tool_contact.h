@@ -38,9 +38,9 @@ Result<std::unique_ptr<ObjectContact>> MakeRendererContact(
 
 /// What one tick of contact gives.
 struct ContactTick {
-  Vec3 force = Vec3::Zero();   // on the hand (the renderer's wrench) [N]
-  Vec3 torque = Vec3::Zero();  // [N m]
-  Vec3 proxy = Vec3::Zero();   // [m]
+  Vec3 force = Vec3::Zero();         // on the hand (the renderer's wrench) [N]
+  Vec3 torque = Vec3::Zero();        // [N m]
+  Vec3 proxy = Vec3::Zero();         // [m]
   Vec3 object_force = Vec3::Zero();  // sum of the node forces put on the object [N]
   bool in_contact = false;
   bool renderer_error = false;  // the renderer's update failed: no force this tick

@@ -64,6 +64,18 @@ void FrameHub::ReportStopped(const LoopFrame& f) {
   stopped_ = std::move(now);
 }
 
+void FrameHub::Publish(const LoopFrame& frame) {
+  auto snap = std::make_shared<FrameSnapshot>();
+  snap->frame = frame;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_) return;
+    snap->seq = ++seq_;
+    latest_ = std::move(snap);
+  }
+  cv_.notify_all();
+}
+
 void FrameHub::Run() {
   pthread_setname_np(pthread_self(), "rheo-frames");
   auto next = std::chrono::steady_clock::now();

@@ -30,6 +30,10 @@ class FrameHub {
   /// Wakes every waiting client with "shutting down" and joins the thread.
   void Stop();
 
+  /// For a source other than the loop (rheod --replay's player, which then stands in for
+  /// Start()): `frame` becomes the newest snapshot, and every waiting client wakes.
+  void Publish(const LoopFrame& frame);
+
   /// Registers a client wanting `rate_hz`; returns a handle for Unregister.
   int Register(double rate_hz);
   void Unregister(int handle);

@@ -71,9 +71,9 @@ Command::Type CommandType(v1::AppliedCommand::Type t) {
 }
 
 // A preset's parameters with the recorded list over them, then the what-if values.
-Result<sim::Parameters> BuildParameters(const std::string& preset,
-                                        const google::protobuf::RepeatedPtrField<v1::Parameter>& list,
-                                        const ReplayOptions& options, uint32_t instance_id) {
+Result<sim::Parameters> BuildParameters(
+    const std::string& preset, const google::protobuf::RepeatedPtrField<v1::Parameter>& list,
+    const ReplayOptions& options, uint32_t instance_id) {
   auto p = sim::FindPreset(preset.empty() ? "soft-jelly" : preset);
   if (!p.ok()) return Error{p.error().code, ObjectName(instance_id) + ": " + p.error().message};
   sim::Parameters params = p->params;
@@ -141,9 +141,8 @@ Result<Built> BuildObject(const v1::SceneEvent& ev, const ReplayOptions& options
     rc.device.max_force_rate = c.device_max_force_rate();
     rc.device.damping = c.device_damping();
     rc.device.tick = c.device_tick();
-    auto contact =
-        MakeRendererContact(rc, mesh.surface, out.object->positions(), ToVec(c.tool()),
-                            MinSurfaceMass(mesh.surface, out.object->model().mass));
+    auto contact = MakeRendererContact(rc, mesh.surface, out.object->positions(), ToVec(c.tool()),
+                                       MinSurfaceMass(mesh.surface, out.object->model().mass));
     if (!contact.ok())
       return Error{contact.error().code,
                    ObjectName(id) + ": the renderer does not build: " + contact.error().message};
@@ -179,12 +178,13 @@ Result<ReplayReport> ReplayRecording(const std::string& path, const ReplayOption
       if (it != ch.metadata.end()) period_ns = std::atoll(it->second.c_str());
     }
   if (period_ns <= 0)
-    return InvalidArgument(path + " has no /tool channel with its period_ns: not a rheod recording");
+    return InvalidArgument(path +
+                           " has no /tool channel with its period_ns: not a rheod recording");
   const double dt = static_cast<double>(period_ns) * 1e-9;
 
   // Pass 1: the events (small, and logged by wall clock after the tick that applied them).
   std::vector<v1::SceneEvent> present;
-  std::map<uint64_t, v1::SceneEvent> added;        // by command_seq
+  std::map<uint64_t, v1::SceneEvent> added;         // by command_seq
   std::map<uint64_t, v1::ParameterChange> changes;  // by command_seq
   uint64_t max_vertices = 0, vertices_now = 0;
   for (auto cursor = reader->Messages();;) {
@@ -401,8 +401,8 @@ Result<ReplayReport> ReplayRecording(const std::string& path, const ReplayOption
       const Vec3 rproxy = ToVec(sample.proxy_position()), rforce = ToVec(sample.object_force());
       ++report.samples_compared;
       report.contact_ticks += sample.in_contact();
-      const bool same = SameBits(proxy, rproxy) && SameBits(force, rforce) &&
-                        t.in_contact == sample.in_contact();
+      const bool same =
+          SameBits(proxy, rproxy) && SameBits(force, rforce) && t.in_contact == sample.in_contact();
       report.max_proxy_diff_m = std::max(report.max_proxy_diff_m, MaxAbs(proxy, rproxy));
       const double df = MaxAbs(force, rforce);
       if (df > report.max_force_diff_n) {
@@ -423,8 +423,7 @@ Result<ReplayReport> ReplayRecording(const std::string& path, const ReplayOption
     report.caveats.push_back(std::to_string(dropped) +
                              " ticks are missing from /tool (the recorder's ring dropped them): "
                              "stepped with the tool held at its last pose and no commands");
-  report.wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  report.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return report;
 }
 

@@ -68,7 +68,8 @@ int RunReplay(const ReplayArgs& a) {
 void AddReplayCommand(CLI::App& app) {
   auto a = std::make_shared<ReplayArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "replay", "re-run a session recording (.mcap from rheod) and compare it with what it recorded");
+      "replay",
+      "re-run a session recording (.mcap from rheod) and compare it with what it recorded");
   cmd->add_option("file", a->file, "the recording (rheoctl record export ID --out FILE)")
       ->required();
   cmd->add_option("--set", a->sets,
