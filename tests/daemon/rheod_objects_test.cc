@@ -1,11 +1,15 @@
 // Objects and scene through a real rheod: sketch upload, progress, storage across restarts,
 // export, errors, and a simulated object streaming frames.
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
+#include <atomic>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "common/tet_mesh_io.h"
 #include "rheo/v1/frames.grpc.pb.h"
@@ -133,6 +137,84 @@ TEST(RheodObjects, SketchBecomesAStoredSolidThatSurvivesARestart) {
     v1::Object o;
     EXPECT_EQ(stub->GetObject(&ctx2, g, &o).error_code(), grpc::StatusCode::NOT_FOUND);
   }
+  std::filesystem::remove_all(keep_dir);
+}
+
+// SIGKILL in the middle of a mesh job: after the restart the store passes SQLite's integrity
+// check, the design stored before is there and exports, and the killed job left nothing
+// half-written (bench/reliability/kill9.sh does this 20 times in each of three situations).
+TEST(RheodObjects, ASigkillDuringAMeshJobLosesNothingStored) {
+  auto keep = std::filesystem::temp_directory_path() / "rheod-kill-XXXXXX";
+  std::string keep_dir = keep.string();
+  ASSERT_NE(mkdtemp(keep_dir.data()), nullptr);
+  std::string id;
+  {
+    RheodProcess d({"--data-dir", keep_dir});
+    ASSERT_TRUE(d.started()) << d.log();
+    auto stub = v1::ObjectService::NewStub(d.channel());
+    Created c = Create(*stub, BeanRequest());
+    ASSERT_TRUE(c.status.ok()) << c.status.error_message();
+    id = c.object.id();
+    // A fine bean (seconds of meshing), killed as soon as the job reports a stage past the queue.
+    v1::CreateObjectRequest fine = BeanRequest();
+    fine.set_name("fine bean");
+    fine.mutable_mesh_options()->set_resolution(0.004);
+    std::atomic<bool> working{false};
+    Created killed;
+    std::thread job([&] {
+      grpc::ClientContext ctx;
+      SetDeadline(ctx, 60s);
+      auto reader = stub->CreateObject(&ctx, fine);
+      v1::CreateObjectProgress p;
+      while (reader->Read(&p)) {
+        killed.progress.push_back(p);
+        if (p.stage() != "queued") working = true;
+      }
+      killed.status = reader->Finish();
+      working = true;
+    });
+    for (int i = 0; i < 2000 && !working; ++i) std::this_thread::sleep_for(5ms);
+    d.Signal(SIGKILL);
+    job.join();
+    ASSERT_FALSE(killed.progress.empty());
+    std::printf("killed at stage '%s' (%.0f %%)\n", killed.progress.back().stage().c_str(),
+                100.0 * killed.progress.back().fraction());
+    EXPECT_FALSE(killed.status.ok()) << "the job finished before the kill";
+  }
+  RheodProcess d({"--data-dir", keep_dir});
+  ASSERT_TRUE(d.started()) << d.log();
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open_v2((keep_dir + "/objects.db").c_str(), &db, SQLITE_OPEN_READONLY, nullptr),
+            SQLITE_OK);
+  std::string integrity;
+  sqlite3_exec(
+      db, "PRAGMA integrity_check;",
+      [](void* out, int, char** values, char**) {
+        *static_cast<std::string*>(out) += values[0] ? values[0] : "";
+        return 0;
+      },
+      &integrity, nullptr);
+  sqlite3_close(db);
+  EXPECT_EQ(integrity, "ok");
+  auto stub = v1::ObjectService::NewStub(d.channel());
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::ListObjectsResponse list;
+  ASSERT_TRUE(stub->ListObjects(&ctx, {}, &list).ok());
+  ASSERT_EQ(list.objects_size(), 1);
+  EXPECT_EQ(list.objects(0).id(), id);
+  grpc::ClientContext ectx;
+  SetDeadline(ectx);
+  v1::ExportObjectRequest req;
+  req.set_id(id);
+  req.set_format(v1::EXPORT_FORMAT_VTU);
+  auto reader = stub->ExportObject(&ectx, req);
+  std::string vtu;
+  v1::ExportChunk chunk;
+  while (reader->Read(&chunk)) vtu += chunk.data();
+  ASSERT_TRUE(reader->Finish().ok());
+  EXPECT_TRUE(ReadVtu(vtu).ok());
+  EXPECT_EQ(d.Terminate(5s), 0);
   std::filesystem::remove_all(keep_dir);
 }
 

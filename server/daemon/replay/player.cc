@@ -70,7 +70,8 @@ Result<std::unique_ptr<RecordingPlayer>> RecordingPlayer::Open(const std::string
   for (const auto& [id, ch] : reader->channels())
     if (ch.topic == "/tool") {
       auto it = ch.metadata.find("period_ns");
-      if (it != ch.metadata.end()) p->period_ns_ = std::max<int64_t>(1, std::atoll(it->second.c_str()));
+      if (it != ch.metadata.end())
+        p->period_ns_ = std::max<int64_t>(1, std::atoll(it->second.c_str()));
     }
   bool any = false;
   for (auto cursor = reader->Messages();;) {
@@ -231,7 +232,7 @@ void RecordingPlayer::Run() {
   pthread_setname_np(pthread_self(), "rheo-playback");
   auto reader = record::McapReader::OpenFile(path_);
   if (!reader.ok()) return;  // Open read it a moment ago; nothing to show if it is gone
-  bool seeking = true;  // skip to `target`, then show that frame at once
+  bool seeking = true;       // skip to `target`, then show that frame at once
   uint64_t target = first_ns_;
   while (true) {
     // From the beginning of the file (the start, or a seek): messages before `target` are
@@ -302,9 +303,8 @@ void RecordingPlayer::Run() {
             speed = speed_;
             was_paused = false;
           }
-          const auto due =
-              anchor_wall + std::chrono::nanoseconds(static_cast<int64_t>(
-                                static_cast<double>(log - anchor_log) / speed));
+          const auto due = anchor_wall + std::chrono::nanoseconds(static_cast<int64_t>(
+                                             static_cast<double>(log - anchor_log) / speed));
           if (Clock::now() >= due) break;
           cv_.wait_until(lock, due);
         }
@@ -315,7 +315,8 @@ void RecordingPlayer::Run() {
       if (!f.ParseFromArray(d.data(), static_cast<int>(d.size()))) continue;
       v1::ToolSample tool;
       const bool have_tool =
-          !tool_bytes.empty() && tool.ParseFromArray(tool_bytes.data(), static_cast<int>(tool_bytes.size()));
+          !tool_bytes.empty() &&
+          tool.ParseFromArray(tool_bytes.data(), static_cast<int>(tool_bytes.size()));
       {
         std::lock_guard<std::mutex> lock(mutex_);
         shown_ns_ = log;
