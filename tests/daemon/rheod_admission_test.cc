@@ -1,12 +1,15 @@
 // Admission by cost: scene changes and parameter sets that would not fit the 1 ms tick are
-// refused with the prediction and the budget, the loop keeps its rate meanwhile, and an object
-// that keeps needing restores is stopped and reported instead of restored forever.
+// refused with the prediction and the budget, the loop keeps its rate meanwhile (and beside
+// streams that never read), and an object that keeps needing restores is stopped and reported
+// instead of restored forever.
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <thread>
+#include <vector>
 
 #include "rheo/v1/daemon.grpc.pb.h"
 #include "rheo/v1/frames.grpc.pb.h"
@@ -191,6 +194,73 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
     }
     EXPECT_FALSE(o.unstable());
   }
+}
+
+// The daemon's resident memory [kB] (VmRSS of /proc/PID/status; 0 when unreadable).
+long RssKb(int pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::atol(line.c_str() + 6);
+  return 0;
+}
+
+// Stalled clients: 16 WatchFrames streams at 250 Hz with positions that never read a frame.
+// gRPC's flow control holds each at its window: the daemon's memory stays bounded (it grew by
+// 131 MB before the loop locked its memory on fault only: each stream's thread stack had been
+// locked whole) and the loop keeps its rate; a client reading beside them gets its frames.
+TEST(RheodAdmission, StreamsThatNeverReadNeitherGrowTheDaemonNorSlowTheLoop) {
+  RheodProcess d({"--http", "off", "--stream-idle", "0"});
+  ASSERT_TRUE(d.started()) << d.log();
+  const std::string id = StoreBean(d, 0.006);
+  ASSERT_FALSE(id.empty());
+  v1::SceneObject so;
+  ASSERT_TRUE(Add(d, id, v1::INTEGRATOR_IMPLICIT, {}, &so).ok());
+  const double before = LoopTickRate(d, 1s);
+  const long rss_before = RssKb(d.pid());
+  auto frames = v1::FrameService::NewStub(d.channel());
+  constexpr int kStalled = 16;
+  std::vector<std::unique_ptr<grpc::ClientContext>> contexts;
+  std::vector<std::unique_ptr<grpc::ClientReader<v1::Frame>>> stalled;
+  v1::WatchFramesRequest w;
+  w.set_rate_hz(250);
+  w.set_positions(true);
+  for (int i = 0; i < kStalled; ++i) {
+    contexts.push_back(std::make_unique<grpc::ClientContext>());
+    stalled.push_back(frames->WatchFrames(contexts.back().get(), w));  // and never Read
+  }
+  // A reader beside them, for 3 s at 60 Hz.
+  grpc::ClientContext rctx;
+  SetDeadline(rctx, 20s);
+  v1::WatchFramesRequest r;
+  r.set_rate_hz(60);
+  r.set_positions(true);
+  r.set_max_frames(180);
+  auto reader = frames->WatchFrames(&rctx, r);
+  int read = 0;
+  v1::Frame f;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string detail;
+  double during = 0.0;
+  std::thread rate([&] { during = LoopTickRate(d, 2s, &detail); });
+  while (reader->Read(&f)) ++read;
+  const double read_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  rate.join();
+  EXPECT_TRUE(reader->Finish().ok());
+  const long rss_after = RssKb(d.pid());
+  std::printf(
+      "%d stalled streams: loop %.0f -> %.0f ticks/s (%s); reader %d frames in %.2f s; rheod RSS "
+      "%ld -> %ld kB\n",
+      kStalled, before, during, detail.c_str(), read, read_s, rss_before, rss_after);
+  EXPECT_TRUE(KeepsItsRate(during, before)) << during << " against " << before;
+  EXPECT_EQ(read, 180);
+  EXPECT_LT(read_s, kSanitizerBuild ? 15.0 : 6.0);
+  // Each stalled stream holds at most its flow-control window and the frame it is writing.
+  EXPECT_LT(rss_after - rss_before, 16 * 1024) << "kB";
+  for (auto& c : contexts) c->TryCancel();
+  for (auto& s : stalled) (void)s->Finish();
+  EXPECT_EQ(d.Terminate(10s), 0) << d.log();
 }
 
 TEST(RheodAdmission, AnObjectThatKeepsExplodingIsStoppedAndReportedNotRestoredForever) {

@@ -9,7 +9,12 @@ namespace rheo::daemon {
 
 Engine::Engine(EngineOptions options)
     : options_(options), loop_(options.loop, [this](const rt::TickInfo& info) { Tick(info); }) {
-  for (LoopFrame& f : frames_.slots()) f.positions.reserve(3u * options_.max_frame_vertices);
+  // Written once, not just reserved: the pages are resident (and locked) before the loop runs,
+  // so a tick that first fills a large frame takes no page faults.
+  for (LoopFrame& f : frames_.slots()) {
+    f.positions.assign(3u * options_.max_frame_vertices, 0.0f);
+    f.positions.clear();
+  }
 }
 
 namespace {

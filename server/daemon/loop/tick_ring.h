@@ -35,6 +35,16 @@ class TickRing {
  public:
   static constexpr size_t kCapacity = 8192;  // ticks (8.2 s at 1 kHz)
 
+  /// Every slot is written once here, off the loop, so that its pages are resident (and locked)
+  /// before the loop first pushes into them.
+  TickRing() {
+    for (size_t i = 0; i < kCapacity && ring_.push(scratch_); ++i) {
+    }
+    TickRecord r;
+    while (ring_.pop(r)) {
+    }
+  }
+
   /// Loop thread: offers this tick; does nothing (one relaxed load) unless a session is active.
   /// Never allocates, locks or waits.
   void Offer(const rt::TickInfo& info, double sim_time, bool paused, const ToolTelemetry& tool,
