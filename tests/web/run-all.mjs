@@ -5,12 +5,12 @@
 import { spawnSync } from 'node:child_process';
 import { fileURLToPath } from 'node:url';
 
-const TESTS = ['create', 'params', 'viewers', 'refusal', 'viewonly', 'reconnect', 'tool', 'press', 'cancel', 'picture', 'record'];
+const TESTS = ['create', 'params', 'viewers', 'refusal', 'viewonly', 'reconnect', 'tool', 'press', 'cancel', 'picture', 'record', 'playback'];
 let passed = 0;
 let failed = 0;
 for (const name of TESTS) {
   const file = fileURLToPath(new URL(`./${name}.mjs`, import.meta.url));
-  const r = spawnSync(process.execPath, [file, ...process.argv.slice(2)], { encoding: 'utf8', timeout: name === 'record' ? 240000 : 120000 });
+  const r = spawnSync(process.execPath, [file, ...process.argv.slice(2)], { encoding: 'utf8', timeout: name === 'record' || name === 'playback' ? 240000 : 120000 });
   const out = `${r.stdout || ''}${r.stderr || ''}`;
   if (r.status === 0) {
     passed++;

@@ -1,6 +1,7 @@
 // Rheo studio: wires the sketch pad, the make-it panel, the 3D view, the live parameters, the
-// library and the status line to one Rpc connection. `/?view` is a watch-only page: only the 3D
-// view and the status line are put into the document.
+// library, the recordings, the playback bar (rheod --replay) and the status line to one Rpc
+// connection. `/?view` is a watch-only page: only the 3D view and the status line (and, while
+// rheod plays a recording back, the playback bar without its controls) are put into the document.
 
 import { Rpc, rpcUrl, Code } from './rpc.js';
 import { View3D } from './view3d.js';
@@ -26,6 +27,7 @@ function takeToken() {
 const rpc = new Rpc(rpcUrl(), takeToken());
 let studio = null; // the editing panels, in studio mode (below)
 let recordings = null; // the recordings panel (or the status line's indicator alone), once signed in
+let playback = null; // the playback bar (rheod --replay), once signed in; in the page only while one plays
 const view = new View3D($('#view'), $('#view-overlay'));
 
 // ---------------------------------------------------------------------------------------------
@@ -115,6 +117,7 @@ rpc.addEventListener('open', () => {
   loadScene();
   if (studio) studio.onConnected();
   if (recordings) recordings.refresh().catch(() => {});
+  if (playback) playback.check(); // a restarted daemon may play back now, or no longer
 });
 
 async function loadScene() {
@@ -247,6 +250,23 @@ if (!identity.error) {
   recordings = new Recordings(recPanel, rpc, { canRecord, indicator: $('#st-rec') });
   window.rheo.recordings = recordings;
 }
+// The playback bar: on every signed-in page while rheod plays a recording back (/?view too, so
+// no watcher takes it for a live scene); its controls only where the studio's are, for operators
+// and admins.
+const pbTemplate = $('#playback-bar');
+if (!identity.error) {
+  const { Playback } = await import('./playback.js');
+  const canControl = !viewOnly && (identity.role === 'ROLE_OPERATOR' || identity.role === 'ROLE_ADMIN');
+  const bar = pbTemplate.content.cloneNode(true).firstElementChild;
+  playback = new Playback(bar, rpc, {
+    canControl,
+    indicator: $('#st-replay'),
+    before: $('#layout'),
+    onChange: (playing) => studio?.setReplaying(playing),
+  });
+  window.rheo.playback = playback;
+}
+pbTemplate.remove();
 
 function showAppAlert(msg) {
   const el = $('#app-alert');
@@ -262,4 +282,5 @@ if (rpc.connected) {
   loadScene();
   if (studio) studio.onConnected();
   if (recordings) recordings.refresh().catch(() => {});
+  if (playback) playback.check();
 }

@@ -19,6 +19,8 @@ function advice(err) {
     case Code.DEADLINE_EXCEEDED:
       return 'It took too long: raise Resolution for a coarser mesh.';
     case Code.FAILED_PRECONDITION:
+      // A daemon playing a recording back (rheod --replay) says why and what to do itself.
+      if (/^rheod is playing back /.test(err.message)) return '';
       return 'The daemon is not ready for this right now.';
     case Code.UNAVAILABLE:
       return 'The daemon is not reachable; the studio reconnects by itself.';
@@ -310,7 +312,7 @@ export class Studio {
     }
     const d = this.device;
     if (d.kind === 'DEVICE_KIND_NONE') {
-      info.textContent = 'No haptic device attached (rheod --device none): watch only.';
+      this.showNoDevice();
       return;
     }
     info.textContent = `${d.model || d.name || d.kind}${d.connected ? '' : ' (not connected)'}`;
@@ -328,6 +330,22 @@ export class Studio {
     } else if (d.kind === 'DEVICE_KIND_NETWORK') {
       this.dragButton = button('Drag tool', () => (this.mode === 'drag' ? this.stopDrag() : this.startDrag()));
     }
+  }
+
+  /**
+   * The playback bar's news: whether rheod plays a recording back (it then has no device, and the
+   * tool in the view is the recorded one, which "--device none" would misdescribe).
+   */
+  setReplaying(on) {
+    if (this.replaying === on) return;
+    this.replaying = on;
+    if (this.device?.kind === 'DEVICE_KIND_NONE') this.showNoDevice();
+  }
+
+  showNoDevice() {
+    $('#device-info').textContent = this.replaying
+      ? 'Playing a recording back (rheod --replay): the tool in the view is the recorded one; nothing here can touch.'
+      : 'No haptic device attached (rheod --device none): watch only.';
   }
 
   setMode(mode) {

@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <set>
 #include <string_view>
 
@@ -299,7 +300,8 @@ grpc::experimental::Interceptor* RecordingInterceptorFactory::CreateServerInterc
 grpc::Status RefuseWhilePlayingBack(const DaemonContext& ctx, const char* what) {
   if (!ctx.player) return grpc::Status::OK;
   return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
-                      std::string("rheod is playing back ") + ctx.player->state().file +
+                      std::string("rheod is playing back ") +
+                          std::filesystem::path(ctx.player->state().file).filename().string() +
                           " (--replay): the scene follows the recording, so " + what +
                           " is not taken; pause, seek or change the speed with ControlPlayback "
                           "(rheoctl record playback), or run rheod without --replay");
