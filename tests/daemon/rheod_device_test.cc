@@ -105,14 +105,8 @@ TEST(RheodDevice, PressingTheEmulatedHandIntoAnObjectGivesEqualAndOppositeForces
   ASSERT_GT(instance, 0u);
   auto dev = v1::DeviceService::NewStub(d.channel());
   {
-    grpc::ClientContext ctx;
-    SetDeadline(ctx);
-    v1::SimulatedHandRequest req;
     // A slow ramp keeps the tool pressing while the rheological object yields under it.
-    req.mutable_press()->set_depth_m(0.01);
-    req.mutable_press()->set_seconds(2.0);
-    v1::SimulatedHandResponse r;
-    grpc::Status s = dev->SimulatedHand(&ctx, req, &r);
+    grpc::Status s = PressHand(d, 0.01, 2.0);
     ASSERT_TRUE(s.ok()) << s.error_message();
   }
   // Poll (generous deadline) until the tool rests in contact with a steady force.

@@ -19,6 +19,7 @@
 
 #include "rheo/client/channel.h"
 #include "rheo/v1/daemon.grpc.pb.h"
+#include "rheo/v1/device.grpc.pb.h"
 #include "rheo/v1/objects.grpc.pb.h"
 
 extern char** environ;
@@ -219,6 +220,16 @@ grpc::Status CallRaw(const std::shared_ptr<grpc::Channel>& channel, const std::s
   call->Finish(&status, reinterpret_cast<void*>(5));
   step(5);
   return status;
+}
+
+grpc::Status PressHand(const RheodProcess& d, double depth_m, double seconds) {
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::SimulatedHandRequest req;
+  req.mutable_press()->set_depth_m(depth_m);
+  req.mutable_press()->set_seconds(seconds);
+  v1::SimulatedHandResponse r;
+  return v1::DeviceService::NewStub(d.channel())->SimulatedHand(&ctx, req, &r);
 }
 
 std::string StoreSketchFile(const RheodProcess& d, const std::string& path, double resolution,

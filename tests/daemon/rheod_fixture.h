@@ -90,6 +90,10 @@ inline grpc::Status CallEmpty(const std::shared_ptr<grpc::Channel>& channel,
   return CallRaw(channel, path, std::string());
 }
 
+/// sim-spidar-g: the emulated hand presses `depth_m` into the object under it over `seconds`
+/// (DeviceService.SimulatedHand press).
+grpc::Status PressHand(const RheodProcess& d, double depth_m, double seconds);
+
 /// Stores the stroke sketch in the file at `path` (CreateObject, meshed at `resolution` [m]) and
 /// returns the stored object's id ("" after a failed expectation).
 std::string StoreSketchFile(const RheodProcess& d, const std::string& path, double resolution,

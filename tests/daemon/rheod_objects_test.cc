@@ -10,6 +10,7 @@
 #include <fstream>
 #include <sstream>
 #include <thread>
+#include <vector>
 
 #include "common/tet_mesh_io.h"
 #include "rheo/v1/frames.grpc.pb.h"
@@ -54,6 +55,34 @@ Created Create(v1::ObjectService::Stub& stub, const v1::CreateObjectRequest& req
   return c;
 }
 
+// The stored objects' ids, newest first.
+std::vector<std::string> ListIds(v1::ObjectService::Stub& stub) {
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::ListObjectsResponse list;
+  grpc::Status s = stub.ListObjects(&ctx, {}, &list);
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  std::vector<std::string> ids;
+  for (const auto& o : list.objects()) ids.push_back(o.id());
+  return ids;
+}
+
+// An object's mesh as VTU ("" after a failed expectation).
+std::string ExportVtu(v1::ObjectService::Stub& stub, const std::string& id) {
+  grpc::ClientContext ctx;
+  SetDeadline(ctx);
+  v1::ExportObjectRequest req;
+  req.set_id(id);
+  req.set_format(v1::EXPORT_FORMAT_VTU);
+  auto reader = stub.ExportObject(&ctx, req);
+  std::string vtu;
+  v1::ExportChunk chunk;
+  while (reader->Read(&chunk)) vtu += chunk.data();
+  grpc::Status s = reader->Finish();
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  return s.ok() ? vtu : std::string();
+}
+
 v1::CreateObjectRequest BeanRequest() {
   v1::CreateObjectRequest req;
   req.set_name("bean");
@@ -94,26 +123,9 @@ TEST(RheodObjects, SketchBecomesAStoredSolidThatSurvivesARestart) {
   RheodProcess d({"--data-dir", keep_dir});
   ASSERT_TRUE(d.started()) << d.log();
   auto stub = v1::ObjectService::NewStub(d.channel());
+  EXPECT_EQ(ListIds(*stub), std::vector<std::string>{id});
   {
-    grpc::ClientContext ctx;
-    SetDeadline(ctx);
-    v1::ListObjectsResponse list;
-    ASSERT_TRUE(stub->ListObjects(&ctx, {}, &list).ok());
-    ASSERT_EQ(list.objects_size(), 1);
-    EXPECT_EQ(list.objects(0).id(), id);
-  }
-  {
-    grpc::ClientContext ctx;
-    SetDeadline(ctx);
-    v1::ExportObjectRequest req;
-    req.set_id(id);
-    req.set_format(v1::EXPORT_FORMAT_VTU);
-    auto reader = stub->ExportObject(&ctx, req);
-    std::string vtu;
-    v1::ExportChunk chunk;
-    while (reader->Read(&chunk)) vtu += chunk.data();
-    ASSERT_TRUE(reader->Finish().ok());
-    auto mesh = ReadVtu(vtu);
+    auto mesh = ReadVtu(ExportVtu(*stub, id));
     ASSERT_TRUE(mesh.ok()) << mesh.error().message;
     v1::Object o;
     grpc::ClientContext gctx;
@@ -197,23 +209,8 @@ TEST(RheodObjects, ASigkillDuringAMeshJobLosesNothingStored) {
   sqlite3_close(db);
   EXPECT_EQ(integrity, "ok");
   auto stub = v1::ObjectService::NewStub(d.channel());
-  grpc::ClientContext ctx;
-  SetDeadline(ctx);
-  v1::ListObjectsResponse list;
-  ASSERT_TRUE(stub->ListObjects(&ctx, {}, &list).ok());
-  ASSERT_EQ(list.objects_size(), 1);
-  EXPECT_EQ(list.objects(0).id(), id);
-  grpc::ClientContext ectx;
-  SetDeadline(ectx);
-  v1::ExportObjectRequest req;
-  req.set_id(id);
-  req.set_format(v1::EXPORT_FORMAT_VTU);
-  auto reader = stub->ExportObject(&ectx, req);
-  std::string vtu;
-  v1::ExportChunk chunk;
-  while (reader->Read(&chunk)) vtu += chunk.data();
-  ASSERT_TRUE(reader->Finish().ok());
-  EXPECT_TRUE(ReadVtu(vtu).ok());
+  EXPECT_EQ(ListIds(*stub), std::vector<std::string>{id});
+  EXPECT_TRUE(ReadVtu(ExportVtu(*stub, id)).ok());
   EXPECT_EQ(d.Terminate(5s), 0);
   std::filesystem::remove_all(keep_dir);
 }
