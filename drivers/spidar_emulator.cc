@@ -9,10 +9,13 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <ctime>
+#include <thread>
 
 #include "common/clock.h"
 #include "drivers/spidar_kinematics.h"
@@ -291,7 +294,29 @@ void SpidarEmulator::Step(double h) {
   s.lengths = g.length;
 }
 
-void SpidarEmulator::SendReply(std::span<const uint8_t> bytes) {
+void SpidarEmulator::SetLineFault(LineFault fault, int delay_us) {
+  line_delay_us_.store(std::max(0, delay_us), std::memory_order_relaxed);
+  line_fault_.store(fault, std::memory_order_release);
+}
+
+void SpidarEmulator::SendReply(std::span<const uint8_t> reply) {
+  std::span<const uint8_t> bytes = reply;
+  std::array<uint8_t, uart::kMaxFrameSize> damaged;
+  switch (line_fault_.load(std::memory_order_acquire)) {
+    case LineFault::kSilent: return;
+    case LineFault::kCorrupt: {
+      // Every byte inverted: the header no longer names the board, and checksums fail.
+      const size_t n = std::min(reply.size(), damaged.size());
+      for (size_t i = 0; i < n; ++i) damaged[i] = static_cast<uint8_t>(~reply[i]);
+      bytes = std::span<const uint8_t>(damaged.data(), n);
+      break;
+    }
+    case LineFault::kDelayed:
+      std::this_thread::sleep_for(
+          std::chrono::microseconds(line_delay_us_.load(std::memory_order_relaxed)));
+      break;
+    case LineFault::kNone: break;
+  }
   size_t done = 0;
   int spins = 0;
   while (done < bytes.size() && spins < 1000) {

@@ -60,6 +60,11 @@ struct GripSnapshot {
   std::array<int16_t, kSpidarStrings> last_command{};  // its values [digits]
 };
 
+/// What the emulated board's end of the line does wrong (fault injection for tests and the
+/// reliability bench): nothing; no replies at all (a cut line: commands still arrive); every
+/// reply with its bytes damaged; every reply held back for a while.
+enum class LineFault { kNone, kSilent, kCorrupt, kDelayed };
+
 /// Runs its own thread from Start() to Stop()/destruction. Thread-safe API.
 class SpidarEmulator {
  public:
@@ -85,6 +90,9 @@ class SpidarEmulator {
   void SetHandWrench(const Wrench& wrench);
 
   GripSnapshot Snapshot() const;
+  /// From now on the board's replies suffer `fault` (kDelayed: each is sent `delay_us` late);
+  /// kNone restores the line.
+  void SetLineFault(LineFault fault, int delay_us = 0);
   /// Whether the emulator thread got SCHED_FIFO (options.realtime_priority > 0 and permitted).
   bool realtime() const { return realtime_.load(std::memory_order_acquire); }
   /// Stops the thread; the pty closes. Idempotent.
@@ -109,6 +117,8 @@ class SpidarEmulator {
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> realtime_{false};
+  std::atomic<LineFault> line_fault_{LineFault::kNone};
+  std::atomic<int> line_delay_us_{0};
 
   // Guards everything below against the API threads; priority-inheriting, so an API thread
   // preempted while holding it cannot stall the (real-time) emulator thread.

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cstdio>
 #include <thread>
 #include <vector>
 
@@ -89,6 +90,70 @@ TEST(DeviceLink, ALineWhoseExchangesKeepFailingIsReportedDisconnected) {
   EXPECT_FALSE(t.connected) << (t.device_errors - errors) << " failed exchanges";
   EXPECT_GT(t.device_errors, errors);
   engine.Stop();
+}
+
+// The emulated board's end of the line goes wrong three ways (no replies, damaged replies,
+// replies later than the driver waits): the link reports it (disconnected or a latched fault,
+// the failed exchanges counted), the strings are commanded to their minimum tension, and once
+// the line is good again the loop clears the stop by itself and the link is connected.
+TEST(DeviceLink, LineFaultsAreReportedTheStringsGoSlackAndTheLinkRecovers) {
+  struct Case {
+    const char* name;
+    drivers::LineFault fault;
+    int delay_us;
+  };
+  for (const Case& c : {Case{"silent", drivers::LineFault::kSilent, 0},
+                        Case{"corrupt", drivers::LineFault::kCorrupt, 0},
+                        Case{"delayed 30 ms", drivers::LineFault::kDelayed, 30000}}) {
+    SCOPED_TRACE(c.name);
+    DeviceLinkOptions o;
+    o.kind = DeviceKind::kSimSpidarG;
+    o.config_path = std::string(RHEO_DEVICES) + "/spidar_g_x5.json";
+    o.realtime = false;
+    o.reply_timeout_us = 20000;
+    o.watchdog_timeout_ns = 100'000'000;
+    auto link = DeviceLink::Open(o);
+    ASSERT_TRUE(link.ok()) << link.error().message;
+    drivers::SpidarEmulator& emu = *(*link)->emulator();
+    const double min_tension = (*link)->min_tension();
+    Engine engine(TestOptions());
+    engine.AttachDevice(link->get());
+    engine.Start();
+    ToolTelemetry t = WaitFor(engine, [](const ToolTelemetry& t) {
+      return t.exchanges > 200 && t.connected && t.faults == 0;
+    });
+    ASSERT_TRUE(t.connected && t.faults == 0);
+    const uint64_t errors = t.device_errors + t.protocol_errors, recoveries = t.recoveries;
+
+    emu.SetLineFault(c.fault, c.delay_us);
+    t = WaitFor(engine, [](const ToolTelemetry& t) { return !t.connected || t.faults != 0; });
+    EXPECT_TRUE(!t.connected || t.faults != 0) << "the fault was not reported";
+    EXPECT_GT(t.device_errors + t.protocol_errors, errors);
+    // Every string at its minimum tension (the commands still reach the board).
+    bool slack = false;
+    for (int i = 0; i < 400 && !slack; ++i) {
+      const drivers::GripSnapshot g = emu.Snapshot();
+      slack = true;
+      for (int k = 0; k < g.tensions.size(); ++k)
+        slack = slack && g.tensions[k] <= min_tension + 0.01;
+      if (!slack) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    EXPECT_TRUE(slack) << "the strings were not commanded to their minimum tension";
+    const ToolTelemetry during = engine.tool();
+
+    emu.SetLineFault(drivers::LineFault::kNone);
+    t = WaitFor(engine, [](const ToolTelemetry& t) { return t.connected && t.faults == 0; });
+    EXPECT_TRUE(t.connected) << "not connected again";
+    EXPECT_EQ(t.faults, 0u) << "the stop was not cleared";
+    std::printf(
+        "%s: reported with faults 0x%x, connected %d; %llu failed exchanges, %llu protocol "
+        "errors; strings slack %d; back with %llu recoveries\n",
+        c.name, during.faults, during.connected,
+        static_cast<unsigned long long>(during.device_errors),
+        static_cast<unsigned long long>(during.protocol_errors), slack,
+        static_cast<unsigned long long>(t.recoveries - recoveries));
+    engine.Stop();
+  }
 }
 
 TEST(DeviceLink, NetworkToolPressesATetrahedronWithEqualAndOppositeForces) {

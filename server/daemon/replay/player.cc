@@ -67,12 +67,6 @@ Result<std::unique_ptr<RecordingPlayer>> RecordingPlayer::Open(const std::string
   p->path_ = path;
   p->hub_ = &hub;
   p->on_scene_ = std::move(on_scene);
-  for (const auto& [id, ch] : reader->channels())
-    if (ch.topic == "/tool") {
-      auto it = ch.metadata.find("period_ns");
-      if (it != ch.metadata.end())
-        p->period_ns_ = std::max<int64_t>(1, std::atoll(it->second.c_str()));
-    }
   bool any = false;
   for (auto cursor = reader->Messages();;) {
     auto m = cursor.Next();

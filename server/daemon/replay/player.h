@@ -78,7 +78,6 @@ class RecordingPlayer {
   std::map<uint32_t, v1::SceneEvent> objects_;  // by instance id: every object the file has
   uint64_t first_ns_ = 0, last_ns_ = 0;         // log times of the first and last frame
   uint64_t frame_count_ = 0;
-  int64_t period_ns_ = 1'000'000;
 
   mutable std::mutex mutex_;
   std::condition_variable cv_;
