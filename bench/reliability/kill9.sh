@@ -68,6 +68,7 @@ kill9() {
 expected="$data/expected-ids"  # designs acknowledged before a kill
 : >"$expected"
 failures=0
+killed_inside=0  # "during a job" kills that came before the job reported done
 starts=()
 check() {  # after a restart: the store, every acknowledged design, every recording
   local what=$1 bad="" n=0 rec_ok=0 rec_n=0 rec_empty=0
@@ -123,10 +124,17 @@ for round in $(seq 1 "$ROUNDS"); do
   start_rheod
   check "idle $round"
 
-  # During a mesh job (a fine bean: seconds of meshing); killed 0.3-1.2 s in.
-  ctl object create samples/bean.json --name "bean $round" --resolution 0.004 >/dev/null 2>&1 &
+  # During a mesh job (a fine bean): killed 0-90 ms after the job reports its tetrahedra stage,
+  # so that the kill lands inside the job rather than after it (rheoctl prints each stage).
+  ctl object create samples/bean.json --name "bean $round" --resolution 0.004 >"$data/job.txt" 2>&1 &
   job=$!
-  sleep "0.$((3 + RANDOM % 10))"
+  for _ in $(seq 1 500); do
+    grep -q "tetrahedra" "$data/job.txt" 2>/dev/null && break
+    sleep 0.01
+  done
+  sleep "0.0$((RANDOM % 10))"
+  inside=$(grep -c " done " "$data/job.txt" 2>/dev/null || true)
+  [ "${inside:-0}" -eq 0 ] && killed_inside=$((killed_inside + 1))
   kill9
   wait "$job" 2>/dev/null || true
   start_rheod
@@ -155,6 +163,7 @@ count=${#starts[@]}
 median=$(sed -n "$(((count + 1) / 2))p" <<<"$sorted")
 max=$(tail -1 <<<"$sorted")
 echo "kills: $count (idle, during a job, during a recording: $ROUNDS each); failures: $failures"
+echo "kills during a job that came before it was done: $killed_inside of $ROUNDS"
 echo "restart to listening: median $median s, max $max s"
 echo "designs at the end: $(wc -l <"$expected"); recordings: $(ls "$data/recordings"/*.mcap 2>/dev/null | wc -l)"
 rm -rf "$data"
