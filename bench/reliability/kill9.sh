@@ -124,15 +124,14 @@ for round in $(seq 1 "$ROUNDS"); do
   start_rheod
   check "idle $round"
 
-  # During a mesh job (a fine bean): killed 0-90 ms after the job reports its tetrahedra stage,
+  # During a mesh job (a fine bean): killed as soon as the job reports a stage past the queue,
   # so that the kill lands inside the job rather than after it (rheoctl prints each stage).
-  ctl object create samples/bean.json --name "bean $round" --resolution 0.004 >"$data/job.txt" 2>&1 &
+  ctl object create samples/bean.json --name "bean $round" --resolution 0.003 >"$data/job.txt" 2>&1 &
   job=$!
-  for _ in $(seq 1 500); do
-    grep -q "tetrahedra" "$data/job.txt" 2>/dev/null && break
-    sleep 0.01
+  for _ in $(seq 1 1000); do
+    grep -v " queued " "$data/job.txt" 2>/dev/null | grep -q "%" && break
+    sleep 0.005
   done
-  sleep "0.0$((RANDOM % 10))"
   inside=$(grep -c " done " "$data/job.txt" 2>/dev/null || true)
   [ "${inside:-0}" -eq 0 ] && killed_inside=$((killed_inside + 1))
   kill9
