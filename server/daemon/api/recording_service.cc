@@ -307,6 +307,14 @@ grpc::Status RefuseWhilePlayingBack(const DaemonContext& ctx, const char* what) 
                           "(rheoctl record playback), or run rheod without --replay");
 }
 
+grpc::Status StepPlayback(const DaemonContext& ctx) {
+  if (!ctx.player->state().paused)
+    return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                        "step shows the next frame of a paused playback; pause it first");
+  ctx.player->StepFrame();
+  return grpc::Status::OK;
+}
+
 std::shared_ptr<SceneEntry> EntryFromSceneEvent(const v1::SceneEvent& ev) {
   auto e = std::make_shared<SceneEntry>();
   const v1::SceneObject& so = ev.object();
@@ -317,8 +325,8 @@ std::shared_ptr<SceneEntry> EntryFromSceneEvent(const v1::SceneEvent& ev) {
                                                              : sim::Integrator::kSymplecticEuler;
   if (auto preset = sim::FindPreset(so.preset().empty() ? "soft-jelly" : so.preset()); preset.ok())
     e->params = preset->params;
-  for (const v1::Parameter& p : so.parameters())
-    (void)sim::SetParameterByName(e->params, p.name(), p.value());
+  // Recorded values the daemon took; a set it would not take now still lists as recorded.
+  (void)ApplyParameterList(e->params, so.parameters());
   e->position = Vec3(so.position().x(), so.position().y(), so.position().z());
   e->vertex_count = ev.mesh().vertex_count();
   e->triangles.assign(ev.mesh().triangles().begin(), ev.mesh().triangles().end());
@@ -368,12 +376,8 @@ grpc::Status RecordingServiceImpl::ControlPlayback(grpc::ServerContext*,
     p.Seek(req->seek_s());
   }
   if (req->has_paused()) p.SetPaused(req->paused());
-  if (req->step()) {
-    if (!p.state().paused)
-      return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
-                          "step shows the next frame of a paused playback; pause it first");
-    p.StepFrame();
-  }
+  if (req->step())
+    if (grpc::Status s = StepPlayback(ctx_); !s.ok()) return s;
   FillPlayback(p.state(), out);
   return grpc::Status::OK;
 }

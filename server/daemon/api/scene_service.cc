@@ -32,21 +32,6 @@ constexpr LoopRange kLoopRanges[] = {
     {"cg_tolerance", &sim::Parameters::cg_tolerance, 1e-10, 1.0},
 };
 
-Status ApplyParameterList(sim::Parameters& p,
-                          const google::protobuf::RepeatedPtrField<v1::Parameter>& list) {
-  for (const v1::Parameter& q : list)
-    if (Status s = sim::SetParameterByName(p, q.name(), q.value()); !s.ok()) return s;
-  if (Status s = sim::ValidateParameters(p); !s.ok()) return s;
-  for (const LoopRange& r : kLoopRanges) {
-    const double v = p.*r.field;
-    if (!(v >= r.min && v <= r.max))
-      return InvalidArgument("parameter '" + std::string(r.name) + "' = " + Num(v) +
-                             " is out of the range the 1 kHz loop takes, [" + Num(r.min) + ", " +
-                             Num(r.max) + "]");
-  }
-  return Status::Ok();
-}
-
 // Ticks per whole step of a multi-rate object when its whole keeps up (100 Hz at a 1 ms tick):
 // the hand force within 0.27-0.44 N RMS of the full solve's at 4.6k tets
 // (bench/sim/results/multirate.txt, N = 10).
@@ -77,6 +62,21 @@ Status CheckFitsTheTick(const DaemonContext& ctx, const sim::Model& model,
 }
 
 }  // namespace
+
+Status ApplyParameterList(sim::Parameters& p,
+                          const google::protobuf::RepeatedPtrField<v1::Parameter>& list) {
+  for (const v1::Parameter& q : list)
+    if (Status s = sim::SetParameterByName(p, q.name(), q.value()); !s.ok()) return s;
+  if (Status s = sim::ValidateParameters(p); !s.ok()) return s;
+  for (const LoopRange& r : kLoopRanges) {
+    const double v = p.*r.field;
+    if (!(v >= r.min && v <= r.max))
+      return InvalidArgument("parameter '" + std::string(r.name) + "' = " + Num(v) +
+                             " is out of the range the 1 kHz loop takes, [" + Num(r.min) + ", " +
+                             Num(r.max) + "]");
+  }
+  return Status::Ok();
+}
 
 grpc::Status SceneServiceImpl::GetScene(grpc::ServerContext*, const v1::GetSceneRequest* req,
                                         v1::Scene* out) {
@@ -476,10 +476,7 @@ grpc::Status SceneServiceImpl::Control(grpc::ServerContext*, const v1::ControlRe
       case v1::RUN_COMMAND_RESUME: p.SetPaused(false); break;
       case v1::RUN_COMMAND_RESET: p.Seek(0.0); break;
       case v1::RUN_COMMAND_STEP:
-        if (!p.state().paused)
-          return grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
-                              "STEP shows the next frame of a paused playback; pause it first");
-        p.StepFrame();
+        if (grpc::Status s = StepPlayback(ctx_); !s.ok()) return s;
         break;
       default:
         return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,

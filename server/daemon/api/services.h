@@ -72,6 +72,15 @@ struct DaemonContext {
   RecordingPlayer* player = nullptr;
 };
 
+/// Puts `list` over `p` by name, then checks the whole set and the solver settings the 1 kHz
+/// loop takes (INVALID_ARGUMENT naming the parameter).
+Status ApplyParameterList(sim::Parameters& p,
+                          const google::protobuf::RepeatedPtrField<v1::Parameter>& list);
+
+/// While rheod plays back (ctx.player): one step of the paused playback; FAILED_PRECONDITION
+/// while it plays.
+grpc::Status StepPlayback(const DaemonContext& ctx);
+
 /// FAILED_PRECONDITION for a request that would change the scene while rheod plays back a
 /// recording (rheod --replay); OK otherwise.
 grpc::Status RefuseWhilePlayingBack(const DaemonContext& ctx, const char* what);
