@@ -381,10 +381,13 @@ TEST(RheodWeb, ASlowViewerSkipsFramesAndNeverSlowsAFastOne) {
     backlog_bytes += m.data.size();
     dropped += std::stoull(json::parse(m.data)["message"]["droppedFrames"].get<std::string>());
   }
+  int slow_after = 0;
   const auto until2 = std::chrono::steady_clock::now() + 300ms;
   while (std::chrono::steady_clock::now() < until2)
-    if (slow.client().Read(&m, 50ms))
+    if (slow.client().Read(&m, 50ms)) {
+      ++slow_after;
       dropped += std::stoull(json::parse(m.data)["message"]["droppedFrames"].get<std::string>());
+    }
   // A sanitizer build beside other tests' daemons (each with a SCHED_FIFO loop on 2 cores) has
   // been seen to serve 4 frames in those 2 s to any viewer: the rate is checked where it means
   // something, the bounds and the counting everywhere.
@@ -393,7 +396,14 @@ TEST(RheodWeb, ASlowViewerSkipsFramesAndNeverSlowsAFastOne) {
   // viewer's 32 KB window) plus the message being written, never the 100 frames of the stall.
   EXPECT_LE(backlog_bytes, 512u * 1024u) << slow_backlog << " frames held for a stalled viewer";
   EXPECT_LT(slow_backlog, 60) << "frames held for a viewer that did not read for 2 s at 50 Hz";
-  EXPECT_GE(dropped, 50u) << "the slow viewer's skipped frames are counted";
+  // Every frame the hub published while the slow viewer stalled either reached it or is counted
+  // as skipped: received plus skipped covers what the fast viewer read in its 2 s (the hub's own
+  // rate varies with the machine: 48 skipped of 2.3 s was seen on a loaded 2-core runner, so the
+  // count is checked against the frames actually published, not against 50 Hz).
+  EXPECT_GE(dropped, 1u) << "the slow viewer's skipped frames are counted";
+  EXPECT_GE(dropped + slow_backlog + slow_after + 5, static_cast<uint64_t>(fast_frames))
+      << "skipped " << dropped << ", held " << slow_backlog << ", after the stall " << slow_after
+      << ": fewer than the " << fast_frames << " frames the fast viewer read";
 }
 
 TEST(RheodWeb, TheToolStreamRunsBothWaysThroughTheBridge) {
