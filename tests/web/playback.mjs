@@ -258,6 +258,9 @@ run(
       await pageCall(page, `${S}/ControlPlayback`, { speed: 1, seekS: 0.5, paused: false });
       assert((await w.locator('#pb-file').textContent()) === name, `${who}: the file`);
       await w.waitForFunction(() => /^REPLAY/.test(document.querySelector('#st-replay').textContent), null, { timeout: 5000 });
+      // The seek to 0.5 s reaches this page a frame or more after the call returns (the first
+      // watcher's turn left it playing at a few seconds): wait until the page shows it.
+      await w.waitForFunction(() => Number(document.querySelector('#pb-time').textContent.split(' ')[0]) < 1.5, null, { timeout: 5000 });
       const a = await shownTime(w);
       await w.waitForFunction((t) => document.querySelector('#pb-time').textContent !== t, a.text, { timeout: 5000 });
       const b = await shownTime(w);
