@@ -41,7 +41,9 @@ ctl() {
 id=$(ctl record start --name node-check --frames-hz 100) || fail "record start failed"
 ctl object create "$samples/bean.json" --resolution 0.012 --add >"$work/object.txt" ||
   fail "object create failed"
-ctl param set 0 k_v=1500 >/dev/null || fail "param set failed"
+# A parameter change within the tick budget: k_v=300 keeps the bean at its substeps (a stiff
+# k_v adds substeps, and the admission may then refuse it on a machine whose cost model reads high).
+ctl param set 0 k_v=300 >/dev/null || fail "param set failed"
 sleep 1  # recording a second of the scene, not synchronising
 ctl record stop --json >"$work/recording.json" || fail "record stop failed"
 ctl record export "$id" --out "$work/recording.mcap" || fail "record export failed"
