@@ -249,14 +249,18 @@ RHEO_SIM_KERNEL void AreaForces(const Model& m, const Parameters& p, State& s, d
       const double area2 = std::sqrt(nx * nx + ny * ny + nz * nz);
       const double s0 = S0[k];
       const bool ok = area2 > 1e-300 && s0 > 0.0;
-      const double inv_n = ok ? 1.0 / area2 : 0.0;
+      // As in the tets' kernel, the unit directions are divided by no less than half their rest
+      // scale (|n| >= S0, an edge >= sqrt(S0)/2), so that a collapsing face or edge keeps a
+      // bounded stiffness.
+      const double inv_n = ok ? 1.0 / std::max(area2, s0) : 0.0;
+      const double l_floor = 0.5 * std::sqrt(s0);
       const double hx = nx * inv_n, hy = ny * inv_n, hz = nz * inv_n;
       double u[3][3];
       double lsum = 0.0;
       for (int q = 0; q < 3; ++q) {
         const double lq = std::sqrt(e[q][0] * e[q][0] + e[q][1] * e[q][1] + e[q][2] * e[q][2]);
         lsum += lq;
-        const double inv_lq = lq > 0.0 ? 1.0 / lq : 0.0;
+        const double inv_lq = 1.0 / std::max(lq, l_floor);
         u[q][0] = (hy * e[q][2] - hz * e[q][1]) * inv_lq;
         u[q][1] = (hz * e[q][0] - hx * e[q][2]) * inv_lq;
         u[q][2] = (hx * e[q][1] - hy * e[q][0]) * inv_lq;
@@ -297,6 +301,7 @@ RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, do
   constexpr double kSixth = 1.0 / 6.0, kThird = 1.0 / 3.0;
   const int32_t* Tt = m.tets.data()->data();
   const double* V0 = m.tet_rest_volume.data();
+  const float* GF = m.tet_grad_floor.data();
   const double* X = s.x.data()->data();
   double* F = s.f.data()->data();
   float* TW = s.tet_w.data();
@@ -346,10 +351,12 @@ RHEO_SIM_KERNEL void TetForces(const Model& m, const Parameters& p, State& s, do
       const R vol = (d1[0] * g[1][0] + d1[1] * g[1][1] + d1[2] * g[1][2]) * R(kSixth);
       R u[4][3];
       R gs = 0.0f;
+      const R g_floor = std::max(GF[k], R(1e-30));
       for (int q = 0; q < 4; ++q) {
         const R gn = std::sqrt(g[q][0] * g[q][0] + g[q][1] * g[q][1] + g[q][2] * g[q][2]);
         gs += gn;
-        const R inv = gn > R(1e-30) ? R(1) / gn : R(0);
+        // The unit gradient, but no longer than g / g_floor where a face has collapsed.
+        const R inv = R(1) / std::max(gn, g_floor);
         for (int c = 0; c < 3; ++c) u[q][c] = g[q][c] * inv;
       }
       // w_q = u_q - (usum - u_q) / 3 = (4 u_q - usum) / 3; w[] holds 3 w_q.

@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <span>
 #include <string>
 
@@ -108,6 +109,7 @@ Status FinishModel(Model& m) {
   }
   m.tet_rest_volume.resize(m.tets.size());
   m.tet_min_height.resize(m.tets.size());
+  m.tet_grad_floor.resize(m.tets.size());
   m.inverted_tets = 0;
   for (size_t k = 0; k < m.tets.size(); ++k) {
     for (int32_t idx : m.tets[k]) {
@@ -119,14 +121,17 @@ Status FinishModel(Model& m) {
     const double vol = SignedTetVolume(*p[0], *p[1], *p[2], *p[3]);
     m.tet_rest_volume[k] = vol;
     if (!(vol > 0.0)) ++m.inverted_tets;
-    double max_face = 0.0;
+    double max_face = 0.0, min_face = std::numeric_limits<double>::infinity();
     for (int f = 0; f < 4; ++f) {
       const Vec3& a = *p[(f + 1) % 4];
       const Vec3& b = *p[(f + 2) % 4];
       const Vec3& c = *p[(f + 3) % 4];
-      max_face = std::max(max_face, 0.5 * (b - a).cross(c - a).norm());
+      const double area = 0.5 * (b - a).cross(c - a).norm();
+      max_face = std::max(max_face, area);
+      min_face = std::min(min_face, area);
     }
     m.tet_min_height[k] = max_face > 0 ? 3.0 * std::abs(vol) / max_face : 0.0;
+    m.tet_grad_floor[k] = static_cast<float>(min_face);
   }
   FindElementEdges(m);
   Eigen::AlignedBox3d box;

@@ -31,6 +31,10 @@ struct Model {
   std::vector<std::array<int32_t, 4>> tets;  // positively oriented tetrahedra (m)
   std::vector<double> tet_rest_volume;       // (m) [m^3]
   std::vector<double> tet_min_height;        // smallest tet height (m) [m]
+  // Half the smallest face's |6 grad V| at rest (= its area): the eq. 6 kernel divides a corner's
+  // volume gradient by no less, so a face that collapses does not turn the unit direction's
+  // derivative (1/|grad V|) into an unbounded stiffness (m) [m^2].
+  std::vector<float> tet_grad_floor;
 
   // The tets and faces at each edge, for the assembled product of the implicit system (CSR: edge
   // k's entries are [start[k], start[k + 1])). An entry is 16 t + 4 q + r for element t whose

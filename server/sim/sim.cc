@@ -72,6 +72,7 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
                     &s.f_shape_prev, &s.dv_prev})
     vec->assign(n, Vec3::Zero());
   s.diag.assign(n, 1.0);
+  s.floor_impulse.assign(n, 0.0);
   for (auto* vec : {&s.inv_diag3, &s.mass3, &s.keep3, &s.sys_mass3}) vec->assign(3 * n, 0.0);
   s.good_x = s.x;
   s.good_v = s.v;
@@ -451,6 +452,7 @@ void SimObject::ForgetHistory() {
   // describes the state: the next substep starts afresh.
   for (auto& d : state_.dv) d.setZero();
   for (auto& d : state_.dv_prev) d.setZero();
+  for (auto& j : state_.floor_impulse) j = 0.0;
   state_.have_prev = false;
 }
 
@@ -461,6 +463,7 @@ void SimObject::SaveGood() {
   std::copy(state_.tension.begin(), state_.tension.end(), state_.good_tension.begin());
   state_.good_time = state_.time;
   steps_since_good_ = 0;
+  restored_since_good_ = false;
 }
 
 void SimObject::RestoreGood() {
@@ -472,6 +475,32 @@ void SimObject::RestoreGood() {
   for (auto& r : state_.floor_reaction) r.setZero();
   kinetic_energy_ = 0.0;
   ForgetHistory();
+}
+
+void SimObject::ResetShapeAtGood() {
+  const Model& m = model_;
+  Vec3 good_c = Vec3::Zero(), rest_c = Vec3::Zero();
+  double total = 0.0;
+  for (int32_t i = 0; i < m.num_nodes; ++i) {
+    good_c += m.mass[i] * state_.good_x[i];
+    rest_c += m.mass[i] * m.rest_positions[i];
+    total += m.mass[i];
+  }
+  Vec3 offset = total > 0.0 ? Vec3((good_c - rest_c) / total) : Vec3::Zero();
+  if (internal::DecideTerms(m, params_).floor) {
+    double lowest = std::numeric_limits<double>::infinity();
+    for (const Vec3& x : m.rest_positions) lowest = std::min(lowest, x.y());
+    offset.y() = std::max(offset.y(), params_.floor_height - lowest);
+  }
+  for (int32_t i = 0; i < m.num_nodes; ++i) state_.x[i] = m.rest_positions[i] + offset;
+  placement_ = offset;
+  for (auto& v : state_.v) v.setZero();
+  for (auto& a : state_.a) a = params_.voigt_ratio;
+  for (auto& t : state_.tension) t = 0.0;
+  for (auto& r : state_.floor_reaction) r.setZero();
+  kinetic_energy_ = 0.0;
+  ForgetHistory();
+  SaveGood();
 }
 
 StepResult SimObject::Step(double dt) {
@@ -538,8 +567,17 @@ StepResult SimObject::Step(double dt) {
   }
   kinetic_energy_ = 0.5 * twice_kinetic;
   for (double a : state_.a) finite &= std::isfinite(a);
-  if (!finite || max_speed2 > params_.max_speed * params_.max_speed) {
-    RestoreGood();
+  if ((!finite || max_speed2 > params_.max_speed * params_.max_speed)) {
+    // A second restore from the same good state means the state itself leads to the blow-up
+    // (restoring it looped, every other tick, on a crushed 8k-tet bean): start again from the
+    // rest shape where the object was.
+    if (restored_since_good_) {
+      ResetShapeAtGood();
+      ++events_.shape_resets;
+    } else {
+      RestoreGood();
+      restored_since_good_ = true;
+    }
     r.restored = true;
     ++events_.restores;
     return r;

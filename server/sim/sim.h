@@ -39,6 +39,7 @@ struct EventCounts {
   int64_t steps = 0;
   int64_t substeps = 0;
   int64_t restores = 0;      // recoveries from a non-finite or exploding state
+  int64_t shape_resets = 0;  // restores whose last good state blew up again: back to rest shape
   int64_t capped_ticks = 0;  // ticks that hit max_substeps
   int64_t sleeping_ticks = 0;
   int64_t wakes = 0;
@@ -180,6 +181,9 @@ class SimObject {
   /// After a teleport, restore, reset, sleep or integrator change.
   void ForgetHistory();
   void RestoreGood();
+  // The rest shape, unmoving, at the good state's centre of mass (resting on the floor if that
+  // put it below): the way out when restoring the good state leads to the same blow-up.
+  void ResetShapeAtGood();
   bool CheckState() const;
 
   Model model_;
@@ -196,6 +200,7 @@ class SimObject {
   bool sleeping_ = false;
   double kinetic_energy_ = 0.0;  // [J], after the last step
   int32_t steps_since_good_ = 0;
+  bool restored_since_good_ = false;  // a restore used the current good state already
   EventCounts events_;
 };
 

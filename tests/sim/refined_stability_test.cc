@@ -72,9 +72,9 @@ TEST_P(RefinedStability, DropAndPressNeverRestore) {
   Parameters p = FindPreset(c.preset)->params;
   p.sleep_time = 0.0;  // every tick is stepped
   for (const bool press : {false, true}) {
-    SCOPED_TRACE(::testing::Message() << c.preset << " at " << c.resolution * 1e3 << " mm ("
-                                      << mesh.tets.size() << " tets), "
-                                      << (press ? "pressed" : "dropped"));
+    SCOPED_TRACE(::testing::Message()
+                 << c.preset << " at " << c.resolution * 1e3 << " mm (" << mesh.tets.size()
+                 << " tets), " << (press ? "pressed" : "dropped"));
     auto obj = SimObject::Create(mesh, p, Integrator::kImplicitEuler);
     ASSERT_TRUE(obj.ok()) << obj.error().message;
     SimObject& s = **obj;
@@ -99,10 +99,11 @@ TEST_P(RefinedStability, DropAndPressNeverRestore) {
     for (const Vec3& x : s.positions()) ASSERT_TRUE(x.allFinite());
     const Diagnostics d = s.ComputeDiagnostics();
     const int inverted = Inverted(s);
-    std::printf("%-10s %.1f mm %6zu tets %-7s: %d restores (first at tick %d), %d inverted, "
-                "volume %.4f\n",
-                c.preset, c.resolution * 1e3, mesh.tets.size(), press ? "press" : "drop", restores,
-                first, inverted, d.volume / d.rest_volume);
+    std::printf(
+        "%-10s %.1f mm %6zu tets %-7s: %d restores (first at tick %d), %d inverted, "
+        "volume %.4f\n",
+        c.preset, c.resolution * 1e3, mesh.tets.size(), press ? "press" : "drop", restores, first,
+        inverted, d.volume / d.rest_volume);
     EXPECT_NEAR(d.volume / d.rest_volume, 1.0, 0.05);
     EXPECT_EQ(restores, 0) << "the first at tick " << first;
     EXPECT_LE(inverted, press ? static_cast<int>(mesh.tets.size() / 500) : 0);
@@ -117,7 +118,8 @@ std::vector<Case> Cases() {
 #endif
   std::vector<Case> out;
   for (double r : sizes)
-    for (const char* preset : {"soft-jelly", "hard-jelly", "clay", "organ"}) out.push_back({r, preset});
+    for (const char* preset : {"soft-jelly", "hard-jelly", "clay", "organ"})
+      out.push_back({r, preset});
   return out;
 }
 
