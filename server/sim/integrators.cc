@@ -20,15 +20,18 @@ constexpr double kFloorHoldSlop = 1e-5;
 
 // Inelastic floor contact with Coulomb friction as a velocity projection: unconditionally stable,
 // independent of the material stiffness, and the impulse gives the reaction force directly.
-// `impulse` (the implicit step's, else null) holds the normal impulse the floor already gave each
-// node inside the solve (ImplicitEulerSubstep); it counts towards the friction and the reaction.
+// `impulse` (the implicit step's, else null) holds the impulse the floor already gave each node
+// inside the solve (ImplicitEulerSubstep): its normal part counts towards the friction, all of it
+// towards the reaction. There a node whose tangential velocity the friction stops is marked to
+// stick (State::floor_stick): the next solve holds it in all three coordinates, so that static
+// friction acts inside the solve, as the normal impulse does.
 // The floor's velocity jump is an impulse that no smooth history describes. With h_full > 0 (the
 // implicit step) a node the floor stopped has its history (x_prev, v_prev) replaced by the
 // constant-velocity one through its new state, so that the next BDF2 substep neither re-applies a
 // third of the jump (the M (v0 - v_1)/3 term) nor extrapolates the pre-impact position: left
 // alone, these made a 4.6k-tet bean dropped 2 cm tear at its first rebound.
 void FloorProjection(const Model& m, const Parameters& p, State& s, double h, double tick,
-                     const double* impulse = nullptr, double h_full = 0.0) {
+                     const Vec3* impulse = nullptr, double h_full = 0.0) {
   const double floor = p.floor_height;
   const double mu = p.friction;
   const double inv_tick = 1.0 / tick;
@@ -37,7 +40,8 @@ void FloorProjection(const Model& m, const Parameters& p, State& s, double h, do
     if (m.fixed[i]) continue;
     Vec3& v = s.v[i];
     const double y = s.x[i].y();
-    const double jn = impulse != nullptr ? impulse[i] : 0.0;
+    const Vec3 j = impulse != nullptr ? impulse[i] : Vec3::Zero();
+    const double jn = j.y();
     double dvn = 0.0;
     if (y + h * v.y() < floor) {
       double vn = (floor - y) / h;
@@ -55,11 +59,12 @@ void FloorProjection(const Model& m, const Parameters& p, State& s, double h, do
     v.x() *= scale;
     v.z() *= scale;
     v.y() += dvn;
-    s.floor_reaction[i] += (m.mass[i] * (v - before) + Vec3(0.0, jn, 0.0)) * inv_tick;
+    s.floor_reaction[i] += (m.mass[i] * (v - before) + j) * inv_tick;
     if (h_full > 0.0) {
       // After Advect x1 = x + h v; the constant-velocity history has x_1 = x1 - h_full v.
       s.x_prev[i] = s.x[i] + (h - h_full) * v;
       s.v_prev[i] = v;
+      if (mu > 0.0 && dvt >= vt && dvn_all > 0.0) s.floor_stick[i] = 1;
     }
   }
 }
@@ -186,8 +191,10 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     Vec3 dv = 2.0 * last - s.dv_prev[i];
     s.dv_prev[i] = last;
     if (m.fixed[i] || !dv.allFinite()) dv.setZero();
-    const double held_before = s.floor_impulse[i];
-    s.floor_impulse[i] = 0.0;
+    const double held_before = s.floor_impulse[i].y();
+    const bool stick_before = s.floor_stick[i] != 0;
+    s.floor_impulse[i].setZero();
+    s.floor_stick[i] = 0;
     if (terms.floor && !m.fixed[i]) {
       const double vy = s.v[i].y();
       const double y = bdf2 ? (4.0 * s.x[i].y() - s.x_prev[i].y()) / 3.0 : s.x[i].y();
@@ -199,6 +206,17 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
           dv.y() = vn - vy;
           s.keep3[3 * i + 1] = 0.0;
           ++s.floor_nodes;
+          if (held && stick_before) {
+            // Static friction inside the solve: the sticking node's tangential velocity is 0.
+            // With friction only projected after the solve, a held node moved freely along the
+            // floor within each solve, and a bean standing on its rim walked 6 cm in 1 s at
+            // friction 5 (1.5 cm before the nodes were held).
+            dv.x() = -s.v[i].x();
+            dv.z() = -s.v[i].z();
+            s.keep3[3 * i] = 0.0;
+            s.keep3[3 * i + 2] = 0.0;
+            s.floor_stick[i] = 1;
+          }
         }
       }
     }
@@ -226,8 +244,7 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   for (int32_t i = 0; i < n; ++i) {
     const double d = s.diag[i] + beta_v * s.vol_grad[i].squaredNorm();
     const double inv = m.fixed[i] ? 0.0 : 1.0 / d;
-    for (int c = 0; c < 3; ++c) s.inv_diag3[3 * i + c] = inv;
-    if (s.floor_nodes > 0 && on_floor(i)) s.inv_diag3[3 * i + 1] = 0.0;
+    for (int c = 0; c < 3; ++c) s.inv_diag3[3 * i + c] = s.keep3[3 * i + c] != 0.0 ? inv : 0.0;
   }
   const size_t n3 = 3 * static_cast<size_t>(n);
   auto flat = [](std::vector<Vec3>& v) { return v.data()->data(); };
@@ -260,8 +277,12 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     s.cg_r[i] = m.fixed[i] ? Vec3::Zero() : Vec3(b - m.mass[i] * s.dv[i] - s.cg_q[i]);
     if (springs && !m.fixed[i]) s.cg_r[i] -= (hh * hh * s.k_ext[i]) * s.cg_p[i];
     if (s.floor_nodes > 0 && on_floor(i)) {
-      s.floor_impulse[i] = -b.y();  // the impulse is (A u - b).y, completed after the solve
-      s.cg_r[i].y() = 0.0;
+      // The impulse is (A u - b) in the held coordinates, completed after the solve.
+      for (int c = 0; c < 3; ++c) {
+        if (s.keep3[3 * i + c] != 0.0) continue;
+        s.floor_impulse[i][c] = -b[c];
+        s.cg_r[i][c] = 0.0;
+      }
     }
     b2 += b.squaredNorm();
     v_max2 = std::max(v_max2, s.v[i].squaredNorm());
@@ -304,7 +325,9 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     s.last_cg_iterations = it;
     stats.residual = r_norm / scale;
   } else {
-    for (int32_t i = 0; i < n; ++i) s.dv[i] = Vec3(0.0, on_floor(i) ? s.dv[i].y() : 0.0, 0.0);
+    for (int32_t i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c)
+        if (!on_floor(i) || s.keep3[3 * i + c] != 0.0) s.dv[i][c] = 0.0;
   }
   if (s.floor_nodes > 0) {
     // The floor's impulse on each node it held: (A u - b).y, one more product (only in the
@@ -314,12 +337,19 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
       s.cg_p[i] = k + s.dv[i];
     }
     ApplyJacobian(m, jac, s, s.cg_p, s.dv, s.cg_q);
+    const double mu = p.friction;
     for (int32_t i = 0; i < n; ++i) {
       if (!on_floor(i)) continue;
-      double a_u = m.mass[i] * s.dv[i].y() + s.cg_q[i].y();
-      if (springs) a_u += hh * hh * s.k_ext[i] * s.cg_p[i].y();
-      s.floor_impulse[i] += a_u;
-      s.keep3[3 * i + 1] = 1.0;
+      Vec3 a_u = m.mass[i] * s.dv[i] + s.cg_q[i];
+      if (springs) a_u += (hh * hh * s.k_ext[i]) * s.cg_p[i];
+      for (int c = 0; c < 3; ++c)
+        if (s.keep3[3 * i + c] == 0.0) s.floor_impulse[i][c] += a_u[c];
+      // A sticking node goes on sticking while the static friction it needed stays within the
+      // cone (and the floor pushes it); otherwise it slides, with friction projected, next time.
+      const Vec3& j = s.floor_impulse[i];
+      if (s.floor_stick[i] != 0 && !(j.y() > 0.0 && std::hypot(j.x(), j.z()) <= mu * j.y()))
+        s.floor_stick[i] = 0;
+      for (int c = 0; c < 3; ++c) s.keep3[3 * i + c] = 1.0;
     }
   }
   // History for the next substep; for BDF2 x becomes (4 x0 - x_1)/3, from which x1 = x + hh v1.

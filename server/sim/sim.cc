@@ -72,7 +72,8 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
                     &s.f_shape_prev, &s.dv_prev})
     vec->assign(n, Vec3::Zero());
   s.diag.assign(n, 1.0);
-  s.floor_impulse.assign(n, 0.0);
+  s.floor_impulse.assign(n, Vec3::Zero());
+  s.floor_stick.assign(n, 0);
   for (auto* vec : {&s.inv_diag3, &s.mass3, &s.keep3, &s.sys_mass3}) vec->assign(3 * n, 0.0);
   s.good_x = s.x;
   s.good_v = s.v;
@@ -452,7 +453,8 @@ void SimObject::ForgetHistory() {
   // describes the state: the next substep starts afresh.
   for (auto& d : state_.dv) d.setZero();
   for (auto& d : state_.dv_prev) d.setZero();
-  for (auto& j : state_.floor_impulse) j = 0.0;
+  for (auto& j : state_.floor_impulse) j.setZero();
+  for (auto& k : state_.floor_stick) k = 0;
   state_.have_prev = false;
 }
 

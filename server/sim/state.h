@@ -66,10 +66,13 @@ struct State {
   std::vector<double> inv_diag3;  // its inverse, 0 on fixed nodes, per coordinate (3n) [1/kg]
   std::vector<double> mass3;      // node masses per coordinate (3n) [kg]
   std::vector<double> keep3;      // 1 per coordinate of a free node, 0 of a fixed one (3n)
-  // The floor inside the implicit solve: per node, the normal impulse the floor gave it in the
-  // last substep's solve (0 where the floor took no part; > 0 keeps it held in the next one)
-  // (n) [N s]; floor_nodes counts the nodes it held.
-  std::vector<double> floor_impulse;
+  // The floor inside the implicit solve: per node, the impulse the floor gave it in the last
+  // substep's solve (zero where the floor took no part; y > 0 keeps it held in the next one; x
+  // and z are the static friction of a sticking node) (n) [N s]; floor_stick: 1 where the node
+  // sticks (its tangential velocity is held at 0 in the next solve) (n); floor_nodes counts the
+  // nodes the floor held.
+  std::vector<Vec3> floor_impulse;
+  std::vector<uint8_t> floor_stick;
   int32_t floor_nodes = 0;
 
   // History of the implicit integrator (BDF2): positions and velocities one substep back.
