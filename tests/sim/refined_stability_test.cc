@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <ostream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -63,6 +64,11 @@ struct Case {
   double resolution;
   const char* preset;
 };
+
+// gtest prints a parameter by its bytes (a pointer among them) unless told.
+void PrintTo(const Case& c, std::ostream* os) {
+  *os << c.preset << " at " << c.resolution * 1e3 << " mm";
+}
 
 class RefinedStability : public ::testing::TestWithParam<Case> {};
 
