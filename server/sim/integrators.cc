@@ -181,15 +181,16 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   // The floor inside the solve (the filtered CG of Baraff and Witkin, 1998): a node that would
   // cross it in this substep, or that it held in the last one and that stays within
   // kFloorHoldSlop, has its normal velocity prescribed, v1.y = (floor - y)/hh with y the base of
-  // the position update, and its y coordinate leaves the unknowns (keep3 and the preconditioner 0
-  // there, as for a fixed node). The rest of the object then meets the impact in
+  // the position update, and its y coordinate leaves the unknowns (its preconditioner is 0, so no
+  // search direction moves it; its row stays in the product, and the residual CG carries there
+  // is minus the floor's impulse). The rest of the object then meets the impact in
   // the same solve; projected only afterwards, the nodes above a stopped one kept falling into it
   // for a substep, and a 22k-tet bean dropped 2 cm inverted its bottom layer and blew up.
   const double floor = p.floor_height;
   s.floor_nodes = 0;
-  // keep3 marks the held coordinates until the preconditioner is built, inv_diag3 (0 there) after.
-  auto on_floor = [&](int32_t i) { return s.inv_diag3[3 * i + 1] == 0.0 && !m.fixed[i]; };
-  auto held_coord = [&](int32_t i, int c) { return s.inv_diag3[3 * i + c] == 0.0 && !m.fixed[i]; };
+  // inv_diag3 first holds 1 per unknown coordinate and 0 per held one; the preconditioner loop
+  // below scales it by the inverse diagonal.
+  auto held = [&](int32_t i, int c) { return s.inv_diag3[3 * i + c] == 0.0 && !m.fixed[i]; };
   for (int32_t i = 0; i < n; ++i) {
     const Vec3 last = s.dv[i];
     Vec3 dv = 2.0 * last - s.dv_prev[i];
@@ -199,26 +200,27 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     const bool stick_before = s.floor_stick[i] != 0;
     s.floor_impulse[i].setZero();
     s.floor_stick[i] = 0;
+    for (int c = 0; c < 3; ++c) s.inv_diag3[3 * i + c] = 1.0;
     if (terms.floor && !m.fixed[i]) {
       const double vy = s.v[i].y();
       const double y = bdf2 ? (4.0 * s.x[i].y() - s.x_prev[i].y()) / 3.0 : s.x[i].y();
-      const bool held = held_before > 0.0 && y + hh * vy <= floor + kFloorHoldSlop;
-      if (y + hh * vy < floor || held) {
+      const bool hold = held_before > 0.0 && y + hh * vy <= floor + kFloorHoldSlop;
+      if (y + hh * vy < floor || hold) {
         double vn = (floor - y) / hh;
         if (y < floor) vn = std::min(vn, std::max(vy, 0.0) + kMaxDepenetrationSpeed);
-        if (vn > vy || held) {
+        if (vn > vy || hold) {
           dv.y() = vn - vy;
-          s.keep3[3 * i + 1] = 0.0;
+          s.inv_diag3[3 * i + 1] = 0.0;
           ++s.floor_nodes;
-          if (held && stick_before) {
+          if (hold && stick_before) {
             // Static friction inside the solve: the sticking node's tangential velocity is 0.
             // With friction only projected after the solve, a held node moved freely along the
             // floor within each solve, and a bean standing on its rim walked 6 cm in 1 s at
             // friction 5 (1.5 cm before the nodes were held).
             dv.x() = -s.v[i].x();
             dv.z() = -s.v[i].z();
-            s.keep3[3 * i] = 0.0;
-            s.keep3[3 * i + 2] = 0.0;
+            s.inv_diag3[3 * i] = 0.0;
+            s.inv_diag3[3 * i + 2] = 0.0;
             s.floor_stick[i] = 1;
           }
         }
@@ -248,12 +250,7 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   for (int32_t i = 0; i < n; ++i) {
     const double d = s.diag[i] + beta_v * s.vol_grad[i].squaredNorm();
     const double inv = m.fixed[i] ? 0.0 : 1.0 / d;
-    for (int c = 0; c < 3; ++c) {
-      s.inv_diag3[3 * i + c] = s.keep3[3 * i + c] != 0.0 ? inv : 0.0;
-      // The held coordinates stay in the product (their rows give the floor's impulse); their
-      // zero preconditioner keeps them out of the search directions, so that u stays prescribed.
-      s.keep3[3 * i + c] = m.fixed[i] ? 0.0 : 1.0;
-    }
+    for (int c = 0; c < 3; ++c) s.inv_diag3[3 * i + c] *= inv;
   }
   const size_t n3 = 3 * static_cast<size_t>(n);
   auto flat = [](std::vector<Vec3>& v) { return v.data()->data(); };
@@ -290,8 +287,8 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   }
   const double rhs_norm = std::sqrt(b2);
   SolveStats stats;
-  const bool solved = rhs_norm > 0.0;
-  if (solved) {
+  // Held nodes are solved for even where b = 0 (their prescribed changes are the right-hand side).
+  if (rhs_norm > 0.0 || s.floor_nodes > 0) {
     // Near rest the solve is tightened: there the right-hand side is mostly weight held by the
     // floor, and an error relative to it, repeated every tick, keeps light nodes jittering above
     // sleep_speed (warm-started, the tighter solve costs about one iteration at rest).
@@ -325,33 +322,18 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     }
     stats.iterations = it;
     s.last_cg_iterations = it;
-    stats.residual = r_norm / scale;
+    stats.residual = scale > 0.0 ? r_norm / scale : 0.0;
   } else {
-    for (int32_t i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c)
-        if (!held_coord(i, c)) s.dv[i][c] = 0.0;
+    for (int32_t i = 0; i < n; ++i) s.dv[i].setZero();
   }
   if (s.floor_nodes > 0) {
     // The floor's impulse on each node it held, (A u - b) in the held coordinates: minus the
-    // residual CG carried there (an extra product had cost 10 % of a contact substep), or, where
-    // b = 0 and nothing was solved, A u.
-    if (!solved) {
-      for (int32_t i = 0; i < n; ++i) {
-        const Vec3 k = bdf2 ? Vec3(s.v[i] + k_scale * (s.x[i] - s.x_prev[i])) : s.v[i];
-        s.cg_p[i] = k + s.dv[i];
-      }
-      ApplyJacobian(m, jac, s, s.cg_p, s.dv, s.cg_q);
-    }
+    // residual CG carried there (an extra product had cost 10 % of a contact substep).
     const double mu = p.friction;
     for (int32_t i = 0; i < n; ++i) {
-      if (!on_floor(i)) continue;
-      Vec3 a_u = Vec3::Zero();
-      if (!solved) {
-        a_u = m.mass[i] * s.dv[i] + s.cg_q[i];
-        if (springs) a_u += (hh * hh * s.k_ext[i]) * s.cg_p[i];
-      }
+      if (!held(i, 1)) continue;
       for (int c = 0; c < 3; ++c)
-        if (held_coord(i, c)) s.floor_impulse[i][c] = solved ? -s.cg_r[i][c] : a_u[c];
+        if (held(i, c)) s.floor_impulse[i][c] = -s.cg_r[i][c];
       // A sticking node goes on sticking while the static friction it needed stays within the
       // cone (and the floor pushes it); otherwise it slides, with friction projected, next time.
       const Vec3& j = s.floor_impulse[i];

@@ -436,13 +436,20 @@ void SimObject::Translate(const Vec3& offset) {
   Wake();
 }
 
-void SimObject::Reset() {
-  state_.x = model_.rest_positions;  // same size: no allocation
-  placement_.setZero();
+void SimObject::PlaceRestShape(const Vec3& offset) {
+  const Model& m = model_;
+  for (int32_t i = 0; i < m.num_nodes; ++i) state_.x[i] = m.rest_positions[i] + offset;
+  placement_ = offset;
   for (auto& v : state_.v) v.setZero();
   for (auto& a : state_.a) a = params_.voigt_ratio;
   for (auto& t : state_.tension) t = 0.0;
+  for (auto& r : state_.floor_reaction) r.setZero();
+  kinetic_energy_ = 0.0;
   ForgetHistory();
+}
+
+void SimObject::Reset() {
+  PlaceRestShape(Vec3::Zero());
   state_.time = 0.0;
   SaveGood();
   Wake();
@@ -494,14 +501,7 @@ void SimObject::ResetShapeAtGood() {
     for (const Vec3& x : m.rest_positions) lowest = std::min(lowest, x.y());
     offset.y() = std::max(offset.y(), params_.floor_height - lowest);
   }
-  for (int32_t i = 0; i < m.num_nodes; ++i) state_.x[i] = m.rest_positions[i] + offset;
-  placement_ = offset;
-  for (auto& v : state_.v) v.setZero();
-  for (auto& a : state_.a) a = params_.voigt_ratio;
-  for (auto& t : state_.tension) t = 0.0;
-  for (auto& r : state_.floor_reaction) r.setZero();
-  kinetic_energy_ = 0.0;
-  ForgetHistory();
+  PlaceRestShape(offset);
   SaveGood();
 }
 
@@ -569,7 +569,7 @@ StepResult SimObject::Step(double dt) {
   }
   kinetic_energy_ = 0.5 * twice_kinetic;
   for (double a : state_.a) finite &= std::isfinite(a);
-  if ((!finite || max_speed2 > params_.max_speed * params_.max_speed)) {
+  if (!finite || max_speed2 > params_.max_speed * params_.max_speed) {
     // A second restore from the same good state means the state itself leads to the blow-up
     // (restoring it looped, every other tick, on a crushed 8k-tet bean): start again from the
     // rest shape where the object was.

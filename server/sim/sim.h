@@ -181,6 +181,9 @@ class SimObject {
   /// After a teleport, restore, reset, sleep or integrator change.
   void ForgetHistory();
   void RestoreGood();
+  // The rest shape, unmoving, moved by `offset`; the history forgotten (Reset and
+  // ResetShapeAtGood).
+  void PlaceRestShape(const Vec3& offset);
   // The rest shape, unmoving, at the good state's centre of mass (resting on the floor if that
   // put it below): the way out when restoring the good state leads to the same blow-up.
   void ResetShapeAtGood();
