@@ -8,6 +8,7 @@
 
 #include "common/geometry.h"
 #include "common/status.h"
+#include "drivers/transport.h"
 
 namespace rheo::drivers {
 
@@ -66,6 +67,9 @@ struct DeviceStatus {
   Wrench displayed;                           // what the tensions actually produce
   bool limited = false;                       // the force or force-rate limit cut the request
   uint64_t protocol_errors = 0;               // replies missing or malformed since Open()
+  /// The line to the controller, for devices whose line can go away and be reopened (a USB
+  /// serial adapter); `line.up` false: connected is false and kFaultNotConnected is set.
+  LineStats line;
 };
 
 /// Fixed facts about a device, for the daemon's status API and the haptic renderer's limits.

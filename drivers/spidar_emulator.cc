@@ -5,6 +5,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <stdlib.h>
+#include <sys/stat.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -15,6 +16,7 @@
 #include <cmath>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
 #include <thread>
 
 #include "common/clock.h"
@@ -42,30 +44,124 @@ Result<std::unique_ptr<SpidarEmulator>> SpidarEmulator::Start(const SpidarConfig
         "physics_step");
   }
   std::unique_ptr<SpidarEmulator> e(new SpidarEmulator(config, options));
-  e->master_fd_ = posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
-  if (e->master_fd_ < 0 || grantpt(e->master_fd_) != 0 || unlockpt(e->master_fd_) != 0) {
-    return Error{ErrorCode::kUnavailable,
-                 std::string("emulator: cannot create a pseudo-terminal: ") + std::strerror(errno)};
+  if (options.line_path.empty()) {
+    std::string dir = (std::filesystem::temp_directory_path() / "rheo-spidar-XXXXXX").string();
+    if (!mkdtemp(dir.data())) {
+      return Error{ErrorCode::kUnavailable,
+                   "emulator: cannot make a directory for the line's name under " +
+                       std::filesystem::temp_directory_path().string() + ": " +
+                       std::strerror(errno)};
+    }
+    e->own_dir_ = dir;
+    e->line_path_ = dir + "/line";
+  } else {
+    struct stat st {};
+    if (lstat(options.line_path.c_str(), &st) == 0 && !S_ISLNK(st.st_mode))
+      return InvalidArgument("emulator: line path " + options.line_path +
+                             " exists and is not a symbolic link (it is replaced on every replug)");
+    e->line_path_ = options.line_path;
   }
-  char name[128];
-  if (ptsname_r(e->master_fd_, name, sizeof name) != 0) {
-    return Error{ErrorCode::kUnavailable, "emulator: ptsname failed"};
-  }
-  e->pty_path_ = name;
-  e->slave_fd_ = ::open(name, O_RDWR | O_NOCTTY | O_CLOEXEC);
-  if (e->slave_fd_ < 0) {
-    return Error{ErrorCode::kUnavailable, "emulator: cannot open " + e->pty_path_};
-  }
-  // Raw from the start: no echo or line editing may ever touch the protocol bytes.
-  termios tio{};
-  tcgetattr(e->slave_fd_, &tio);
-  cfmakeraw(&tio);
-  tcsetattr(e->slave_fd_, TCSANOW, &tio);
-  const int flags = fcntl(e->master_fd_, F_GETFL);
-  fcntl(e->master_fd_, F_SETFL, flags | O_NONBLOCK);
+  if (Status s = e->OpenLine(); !s.ok()) return s.error();
   e->last_advance_ns_ = MonotonicNowNs();
   e->thread_ = std::thread([p = e.get()] { p->Run(); });
   return e;
+}
+
+Status SpidarEmulator::OpenLine() {
+  const int master = posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
+  if (master < 0 || grantpt(master) != 0 || unlockpt(master) != 0) {
+    const std::string why = std::strerror(errno);
+    if (master >= 0) ::close(master);
+    return Error{ErrorCode::kUnavailable, "emulator: cannot create a pseudo-terminal: " + why};
+  }
+  char name[128];
+  if (ptsname_r(master, name, sizeof name) != 0) {
+    ::close(master);
+    return Error{ErrorCode::kUnavailable, "emulator: ptsname failed"};
+  }
+  const int slave = ::open(name, O_RDWR | O_NOCTTY | O_CLOEXEC);
+  if (slave < 0) {
+    ::close(master);
+    return Error{ErrorCode::kUnavailable, std::string("emulator: cannot open ") + name};
+  }
+  // Raw from the start: no echo or line editing may ever touch the protocol bytes.
+  termios tio{};
+  tcgetattr(slave, &tio);
+  cfmakeraw(&tio);
+  tcsetattr(slave, TCSANOW, &tio);
+  const int flags = fcntl(master, F_GETFL);
+  fcntl(master, F_SETFL, flags | O_NONBLOCK);
+  // The stable name moves to the new pty in one step (a new link renamed over the old one), as
+  // udev's by-id link does: whoever opens it finds a pty or nothing, never a half-made name.
+  const std::string staged = line_path_ + ".new";
+  ::unlink(staged.c_str());
+  if (::symlink(name, staged.c_str()) != 0 || ::rename(staged.c_str(), line_path_.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    ::unlink(staged.c_str());
+    ::close(slave);
+    ::close(master);
+    return Error{ErrorCode::kUnavailable,
+                 "emulator: cannot point " + line_path_ + " at " + name + ": " + why};
+  }
+  master_fd_ = master;
+  slave_fd_ = slave;
+  std::lock_guard lock(mutex_);
+  if (opened_before_) ++state_.replugs;
+  opened_before_ = true;
+  pty_path_ = name;
+  state_.plugged = true;
+  state_.commands_on_line = 0;
+  state_.first_command_on_line = {};
+  return Status::Ok();
+}
+
+void SpidarEmulator::CloseLine() {
+  if (master_fd_ < 0) return;
+  // The name goes first, as the adapter's by-id link does when it is pulled out.
+  ::unlink(line_path_.c_str());
+  ::close(slave_fd_);
+  ::close(master_fd_);
+  slave_fd_ = master_fd_ = -1;
+  // A frame cut off by the unplug is gone with the line.
+  pending_ = uart::Command::kNone;
+  need_ = 0;
+  have_ = 0;
+  std::lock_guard lock(mutex_);
+  pty_path_.clear();
+  state_.plugged = false;
+}
+
+std::string SpidarEmulator::pty_path() const {
+  std::lock_guard lock(mutex_);
+  return pty_path_;
+}
+
+Status SpidarEmulator::Unplug() {
+  return ChangeLine(false);
+}
+
+Status SpidarEmulator::Replug() {
+  return ChangeLine(true);
+}
+
+Status SpidarEmulator::ChangeLine(bool plug) {
+  std::lock_guard call(line_call_);
+  if (!thread_.joinable()) {  // stopped: nobody else touches the line
+    if (!plug) {
+      CloseLine();
+      return Status::Ok();
+    }
+    return master_fd_ >= 0 ? Status::Ok() : OpenLine();
+  }
+  line_want_.store(plug ? 1 : 0, std::memory_order_relaxed);
+  const uint64_t request = line_request_.fetch_add(1, std::memory_order_acq_rel) + 1;
+  // The thread looks at least every 5 ms (lockstep) or 1 ms.
+  for (int i = 0; i < 5000 && line_done_.load(std::memory_order_acquire) < request; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  if (line_done_.load(std::memory_order_acquire) < request)
+    return Error{ErrorCode::kDeadlineExceeded, "emulator: the line did not change within 5 s"};
+  std::lock_guard lock(mutex_);
+  return line_result_;
 }
 
 SpidarEmulator::SpidarEmulator(const SpidarConfig& config, const EmulatorOptions& options)
@@ -92,8 +188,8 @@ SpidarEmulator::SpidarEmulator(const SpidarConfig& config, const EmulatorOptions
 
 SpidarEmulator::~SpidarEmulator() {
   Stop();
-  if (slave_fd_ >= 0) ::close(slave_fd_);
-  if (master_fd_ >= 0) ::close(master_fd_);
+  CloseLine();
+  if (!own_dir_.empty()) ::rmdir(own_dir_.c_str());
 }
 
 void SpidarEmulator::Stop() {
@@ -138,9 +234,29 @@ void SpidarEmulator::Run() {
   }
   std::array<uint8_t, 256> buf;
   while (!stop_.load(std::memory_order_acquire)) {
+    if (const uint64_t request = line_request_.load(std::memory_order_acquire);
+        request != line_done_.load(std::memory_order_relaxed)) {
+      Status done = Status::Ok();
+      if (line_want_.load(std::memory_order_relaxed) == 0) {
+        CloseLine();
+      } else if (master_fd_ < 0) {
+        done = OpenLine();
+      }
+      {
+        std::lock_guard lock(mutex_);
+        line_result_ = done;
+      }
+      line_done_.store(request, std::memory_order_release);
+    }
     pollfd p{master_fd_, POLLIN, 0};
-    // Real time: wake at least every 0.5 ms so the grip keeps moving between commands.
-    const int r = poll(&p, 1, options_.lockstep ? 5 : 1);
+    // Real time: wake at least every 0.5 ms so the grip keeps moving between commands. Unplugged,
+    // the grip moves on the same way (the board keeps its last command).
+    int r = 0;
+    if (master_fd_ >= 0) {
+      r = poll(&p, 1, options_.lockstep ? 5 : 1);
+    } else {
+      std::this_thread::sleep_for(std::chrono::milliseconds(options_.lockstep ? 5 : 1));
+    }
     if (!options_.lockstep) {
       const int64_t now = MonotonicNowNs();
       std::lock_guard lock(mutex_);
@@ -213,6 +329,7 @@ void SpidarEmulator::ApplyCurrentCommand() {
     state_.last_command = values;
     state_.last_command_ns = MonotonicNowNs();
     ++state_.current_commands;
+    if (state_.commands_on_line++ == 0) state_.first_command_on_line = values;
     if (options_.lockstep) Advance(options_.lockstep_dt);
     Encoders(&reply);
   }

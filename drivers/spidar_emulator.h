@@ -40,6 +40,10 @@ struct EmulatorOptions {
   // > 0: try SCHED_FIFO at this priority for the emulator thread, so that a busy machine does
   // not delay the emulated board's replies (a real board answers from its own processor).
   int realtime_priority = 0;
+  // Where the stable name of the line goes (line_path()): a symbolic link to the present pty,
+  // replaced if it is one already. Empty: "line" in a directory of the emulator's own under the
+  // temporary directory, removed with the emulator.
+  std::string line_path;
 };
 
 /// The true state of the emulated grip.
@@ -58,6 +62,10 @@ struct GripSnapshot {
   uint64_t protocol_errors = 0;   // bytes that were no known command
   int64_t last_command_ns = 0;    // CLOCK_MONOTONIC when the last current command arrived [ns]
   std::array<int16_t, kSpidarStrings> last_command{};  // its values [digits]
+  bool plugged = true;                                 // the line is there (Unplug, Replug)
+  uint64_t replugs = 0;                                // Replug() calls that made a new line
+  uint64_t commands_on_line = 0;  // current commands received on the present line
+  std::array<int16_t, kSpidarStrings> first_command_on_line{};  // the first of them [digits]
 };
 
 /// What the emulated board's end of the line does wrong (fault injection for tests and the
@@ -77,8 +85,22 @@ class SpidarEmulator {
   SpidarEmulator(const SpidarEmulator&) = delete;
   SpidarEmulator& operator=(const SpidarEmulator&) = delete;
 
-  /// The slave side of the pseudo-terminal: give this to the driver as its serial port.
-  const std::string& pty_path() const { return pty_path_; }
+  /// The stable name of the line: a symbolic link to the present pty, re-pointed by Replug()
+  /// and gone while unplugged, as /dev/serial/by-id/... names a USB serial adapter whatever
+  /// ttyUSB number it gets. Give this to the driver as its serial port.
+  const std::string& line_path() const { return line_path_; }
+  /// The slave side of the present pseudo-terminal (another one after each Replug(); "" while
+  /// unplugged).
+  std::string pty_path() const;
+
+  /// The USB serial adapter pulled out: the emulator's end of the line closes (the driver's
+  /// reads see a hang-up, its writes fail with EIO), the pty and the link at line_path() go
+  /// away. The board keeps its power and the last command it received: the motors stay as they
+  /// were until a command arrives on a new line. Not while Stop() runs.
+  Status Unplug();
+  /// Plugged in again: a new pty, line_path() pointing at it; the board answers identification
+  /// and commands as before, and its counters carry on. Not while Stop() runs.
+  Status Replug();
 
   /// The hand holds the grip, pulling it towards `target` through the hand spring.
   void HoldHand(const Pose& target);
@@ -107,13 +129,26 @@ class SpidarEmulator {
   void Advance(double seconds);
   void SendReply(std::span<const uint8_t> bytes);
   void Encoders(uart::SensorReply* reply) const;
+  // Make and break the line (the emulator thread, or any thread while it does not run).
+  Status OpenLine();
+  void CloseLine();
+  // Asks the emulator thread to plug (true) or unplug the line and waits for it.
+  Status ChangeLine(bool plug);
 
   const SpidarConfig config_;
   const EmulatorOptions options_;
   uart::BoardInfo info_;
+  // The line: the emulator thread's (Unplug/Replug hand it the change through line_want_).
   int master_fd_ = -1;
   int slave_fd_ = -1;  // kept open so the master survives the driver closing and reopening
-  std::string pty_path_;
+  std::string line_path_;
+  std::string own_dir_;            // the directory made for line_path_ ("" with options.line_path)
+  bool opened_before_ = false;     // a line was made before (the next one is a replug)
+  std::mutex line_call_;           // one Unplug/Replug at a time
+  std::atomic<int> line_want_{1};  // 1: plugged, 0: unplugged
+  std::atomic<uint64_t> line_request_{0};  // raised by ChangeLine
+  std::atomic<uint64_t> line_done_{0};     // line_request_ the thread has carried out
+  Status line_result_;                     // of the last change (under mutex_)
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> realtime_{false};
@@ -124,6 +159,7 @@ class SpidarEmulator {
   // preempted while holding it cannot stall the (real-time) emulator thread.
   mutable PiMutex mutex_;
   GripSnapshot state_;
+  std::string pty_path_;
   double inertia_ = 0.0;
   Pose hand_target_;
   std::function<Pose(double)> hand_script_;

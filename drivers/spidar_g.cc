@@ -70,6 +70,7 @@ Status SpidarG::Open() {
   qp_ = TensionSolver(config_.tension_qp, MinTensions(config_), MaxTensions(config_, max_digits));
   info_.model = link_->model();
   open_ = true;
+  status_.line = link_->line_stats();
   status_.connected = true;
   status_.faults &= ~(kFaultNotConnected | kFaultProtocol);
   command_ = min_command_;
@@ -99,10 +100,20 @@ Status SpidarG::ExchangeLocked(const std::array<int16_t, kSpidarStrings>& comman
     Status s = link_->Collect(counts_, buttons);
     // A SafeStop that could not reach the link leaves the posted command on the motors: replace
     // it now rather than a tick later.
-    if (!s.ok() || !stop) return s;
+    if (!s.ok() || !stop) {
+      status_.line = link_->line_stats();
+      return s;
+    }
   }
   // A SafeStop that arrived before we took the lock wins over the command we were given.
-  return link_->Exchange(stop ? min_command_ : command, counts_, buttons);
+  Status s = link_->Exchange(stop ? min_command_ : command, counts_, buttons);
+  status_.line = link_->line_stats();
+  return s;
+}
+
+void SpidarG::NoteLine() {
+  status_.connected = status_.line.up;
+  if (!status_.line.up) status_.faults |= kFaultNotConnected;
 }
 
 Status SpidarG::Post() {
@@ -110,7 +121,10 @@ Status SpidarG::Post() {
   std::lock_guard lock(io_mutex_);
   const bool safe = status_.faults != kFaultNone || stop_requested_.load(std::memory_order_acquire);
   Status s = link_->Post(safe ? min_command_ : command_);
-  if (!s.ok()) {
+  status_.line = link_->line_stats();
+  NoteLine();
+  // A line that is away is a lost connection, not a bad reply.
+  if (!s.ok() && status_.line.up) {
     status_.faults |= kFaultProtocol;
     ++status_.protocol_errors;
   }
@@ -156,9 +170,14 @@ Status SpidarG::Exchange(double dt) {
   uint32_t buttons = 0;
   Status io = ExchangeLocked(safe ? min_command_ : command_, &buttons);
   if (stop_requested_.load(std::memory_order_acquire)) status_.faults |= kFaultSafeStop;
+  // A line that went away (and, with a line source, is being reopened elsewhere) is reported as
+  // a lost connection; the fault stays latched after the line is back, until ClearFaults().
+  NoteLine();
   if (!io.ok()) {
-    status_.faults |= kFaultProtocol;
-    ++status_.protocol_errors;
+    if (status_.line.up) {
+      status_.faults |= kFaultProtocol;
+      ++status_.protocol_errors;
+    }
     return io;
   }
   state_.buttons = buttons;
@@ -271,7 +290,7 @@ void SpidarG::SafeStop() {
 void SpidarG::ClearFaults() {
   stop_requested_ = false;
   uint32_t keep = status_.faults & kFaultNotCalibrated;
-  if (!open_) keep |= kFaultNotConnected;
+  if (!open_ || !status_.line.up) keep |= kFaultNotConnected;
   status_.faults = keep;
 }
 

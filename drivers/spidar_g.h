@@ -25,6 +25,11 @@ namespace rheo::drivers {
 /// reply. A SafeStop() between the two reads the outstanding reply itself and sends minimum
 /// tension, and Exchange() falls back to a full exchange.
 ///
+/// A link with a line source (UartMotorLink::SetLineSource) whose line goes away reports it as
+/// disconnected (kFaultNotConnected, latched; status().line says how the reopening goes), every
+/// exchange fails at once without I/O until a reopened line is there, and the first commands on
+/// that line are at minimum tension until ClearFaults().
+///
 /// Threads: everything but SafeStop() on one thread (the loop). SafeStop() may come from any
 /// thread; it serialises with Exchange() on an internal mutex (waiting at most one reply
 /// timeout) so the serial stream never interleaves, and latches the safe state for every later
@@ -64,6 +69,8 @@ class SpidarG final : public HapticDevice {
   Status ExchangeLocked(const std::array<int16_t, kSpidarStrings>& command, uint32_t* buttons);
   void EncodeTensions(const StringVector& tensions, std::array<int16_t, kSpidarStrings>* out) const;
   void ShowMinimumTension();
+  // connected and kFaultNotConnected from status_.line (the link's line, read under io_mutex_).
+  void NoteLine();
 
   SpidarConfig config_;
   std::unique_ptr<MotorLink> link_;

@@ -28,18 +28,26 @@ speed_t BaudConstant(int baud) {
   }
 }
 
-// Waits for `events` on fd until `deadline_ns`; false on timeout or error.
-bool WaitFor(int fd, short events, int64_t deadline_ns) {
+enum class Wait { kReady, kTimeout, kHungUp };
+
+// Waits for `events` on fd until `deadline_ns`. kHungUp: the other end of the line is gone (a
+// USB serial adapter pulled out, a pty whose master closed); nothing will ever arrive.
+Wait WaitFor(int fd, short events, int64_t deadline_ns) {
   for (;;) {
     const int64_t left_ns = deadline_ns - MonotonicNowNs();
-    if (left_ns <= 0) return false;
+    if (left_ns <= 0) return Wait::kTimeout;
     pollfd p{fd, events, 0};
     // poll() takes milliseconds; ppoll() takes the finer deadline.
     timespec ts{static_cast<time_t>(left_ns / 1'000'000'000),
                 static_cast<long>(left_ns % 1'000'000'000)};
     const int r = ppoll(&p, 1, &ts, nullptr);
-    if (r > 0) return (p.revents & (events | POLLHUP | POLLERR)) != 0;
-    if (r < 0 && errno != EINTR) return false;
+    if (r > 0) {
+      // A hung-up tty also polls readable (its reads return 0 for ever). The callers wait only
+      // after a read or write that moved nothing, so no data is left behind here.
+      if (p.revents & (POLLHUP | POLLERR | POLLNVAL)) return Wait::kHungUp;
+      if (p.revents & events) return Wait::kReady;
+    }
+    if (r < 0 && errno != EINTR) return Wait::kHungUp;
   }
 }
 
@@ -99,7 +107,10 @@ Status TermiosTransport::Write(std::span<const uint8_t> data, int timeout_us) {
       return Error{ErrorCode::kUnavailable,
                    "serial port " + path_ + ": write failed: " + std::strerror(errno)};
     }
-    if (!WaitFor(fd_, POLLOUT, deadline)) {
+    const Wait w = WaitFor(fd_, POLLOUT, deadline);
+    if (w == Wait::kHungUp)
+      return Error{ErrorCode::kUnavailable, "serial port " + path_ + ": hung up"};
+    if (w == Wait::kTimeout) {
       return Error{ErrorCode::kDeadlineExceeded, "serial port " + path_ + ": write timed out"};
     }
   }
@@ -119,7 +130,10 @@ Status TermiosTransport::ReadExact(std::span<uint8_t> data, int timeout_us) {
       return Error{ErrorCode::kUnavailable,
                    "serial port " + path_ + ": read failed: " + std::strerror(errno)};
     }
-    if (!WaitFor(fd_, POLLIN, deadline)) {
+    const Wait w = WaitFor(fd_, POLLIN, deadline);
+    if (w == Wait::kHungUp)
+      return Error{ErrorCode::kUnavailable, "serial port " + path_ + ": hung up"};
+    if (w == Wait::kTimeout) {
       return Error{ErrorCode::kDeadlineExceeded,
                    "serial port " + path_ + ": " + std::to_string(done) + " of " +
                        std::to_string(data.size()) + " bytes within " + std::to_string(timeout_us) +

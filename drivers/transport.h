@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 
 #include "common/status.h"
@@ -19,6 +20,33 @@ class ByteTransport {
   virtual Status ReadExact(std::span<uint8_t> data, int timeout_us) = 0;
   /// Drops whatever has arrived and not been read (resynchronisation).
   virtual void DiscardInput() = 0;
+};
+
+/// A serial line that can go away and come back (a USB serial adapter pulled out and plugged in
+/// again): how it fares, for status.
+struct LineStats {
+  bool up = true;             // the link has a line to talk on
+  uint64_t losses = 0;        // times the line failed as gone (kUnavailable: EIO, hang-up)
+  uint64_t attempts = 0;      // reopens tried (open, raw mode, board identification)
+  uint64_t reopens = 0;       // reopens that worked
+  int64_t backoff_ns = 0;     // wait before the next attempt while the line is away (0 while up)
+  int64_t down_since_ns = 0;  // CLOCK_MONOTONIC when the line went away [ns] (0 while up)
+};
+
+/// Where a link gets a new line when the one it uses has gone away. The link calls these on
+/// whichever thread holds it (the loop, or a SafeStop under the device's lock); none of them
+/// waits, locks or allocates: the reopening itself (open(), tcsetattr, identifying the boards)
+/// runs on a thread of the source's own (LineReopener in rheo_transport).
+class LineSource {
+ public:
+  virtual ~LineSource() = default;
+  /// The line failed as gone: `line` is handed back to be destroyed off the caller's thread, and
+  /// a reopened one is asked for.
+  virtual void Lost(std::unique_ptr<ByteTransport> line) = 0;
+  /// A reopened line whose boards answered identification, or null while there is none yet.
+  virtual std::unique_ptr<ByteTransport> Take() = 0;
+  /// Counts since the source was made; `up` is the link's to fill in.
+  virtual LineStats stats() const = 0;
 };
 
 /// A USB bulk pipe pair (SH4 board): one OUT transfer, then one IN transfer.
@@ -59,6 +87,9 @@ class MotorLink {
   }
   /// A posted command's reply has not been collected (or dropped by Exchange()) yet.
   virtual bool posted() const { return false; }
+  /// Whether the link has a line and how its reopening went (links whose line can go away and
+  /// be reopened; the others are always up). Same thread as Exchange().
+  virtual LineStats line_stats() const { return {}; }
 };
 
 }  // namespace rheo::drivers

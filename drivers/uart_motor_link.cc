@@ -8,10 +8,12 @@ UartMotorLink::UartMotorLink(std::unique_ptr<ByteTransport> transport, std::vect
       board_ids_(std::move(board_ids)),
       reply_timeout_us_(reply_timeout_us) {}
 
-Status UartMotorLink::Open(int num_motors) {
-  boards_.clear();
+Result<std::vector<uart::BoardInfo>> IdentifyUartBoards(ByteTransport& transport,
+                                                        const std::vector<int>& board_ids,
+                                                        int num_motors) {
+  std::vector<uart::BoardInfo> boards;
   int motors = 0;
-  for (int id : board_ids_) {
+  for (int id : board_ids) {
     std::array<uint8_t, uart::kBoardInfoRequestSize> request;
     uart::EncodeBoardInfoRequest(id, request);
     std::array<uint8_t, uart::kBoardInfoReplySize> reply;
@@ -21,9 +23,9 @@ Status UartMotorLink::Open(int num_motors) {
     constexpr int kTries = 3;
     Status r = Status::Ok();
     for (int attempt = 0; attempt < kTries; ++attempt) {
-      transport_->DiscardInput();
-      if (Status s = transport_->Write(request, 100'000); !s.ok()) return s;
-      r = transport_->ReadExact(reply, 2 * uart::kReplyWaitMs * 1000);
+      transport.DiscardInput();
+      if (Status s = transport.Write(request, 100'000); !s.ok()) return s.error();
+      r = transport.ReadExact(reply, 2 * uart::kReplyWaitMs * 1000);
       if (r.ok()) break;
     }
     if (!r.ok()) {
@@ -34,7 +36,7 @@ Status UartMotorLink::Open(int num_motors) {
     }
     auto info = uart::DecodeBoardInfoReply(reply, id);
     if (!info.ok()) return info.error();
-    boards_.push_back(*info);
+    boards.push_back(*info);
     motors += info->n_motor;
   }
   if (motors != num_motors) {
@@ -42,6 +44,15 @@ Status UartMotorLink::Open(int num_motors) {
                  "UART motor boards drive " + std::to_string(motors) + " motors, the device has " +
                      std::to_string(num_motors)};
   }
+  return boards;
+}
+
+Status UartMotorLink::Open(int num_motors) {
+  boards_.clear();
+  if (!transport_) return Error{ErrorCode::kUnavailable, "UART motor link: the line is away"};
+  auto boards = IdentifyUartBoards(*transport_, board_ids_, num_motors);
+  if (!boards.ok()) return boards.error();
+  boards_ = std::move(boards).value();
   for (auto& u : unwrap_) u.Reset();
   posted_ = false;
   resync_ = false;
@@ -53,10 +64,31 @@ Status UartMotorLink::Open(int num_motors) {
   return Status::Ok();
 }
 
+void UartMotorLink::SetLineSource(std::unique_ptr<LineSource> source) {
+  source_ = std::move(source);
+}
+
+LineStats UartMotorLink::line_stats() const {
+  LineStats s = source_ ? source_->stats() : LineStats{};
+  s.up = transport_ != nullptr;
+  return s;
+}
+
+Status UartMotorLink::Watch(Status s) {
+  if (!s.ok() && s.error().code == ErrorCode::kUnavailable && source_ && transport_) {
+    // Gone, not late: nothing more will arrive on this line. What was outstanding on it is lost
+    // with it.
+    source_->Lost(std::move(transport_));
+    posted_ = false;
+    resync_ = false;
+  }
+  return s;
+}
+
 Status UartMotorLink::WriteCommand(const uart::BoardInfo& board, std::span<const int16_t> command) {
   std::array<uint8_t, uart::kMaxFrameSize> frame;
   const size_t n = uart::EncodeCurrentCommand(board.board_id, command, frame);
-  return transport_->Write(std::span(frame.data(), n), reply_timeout_us_);
+  return Watch(transport_->Write(std::span(frame.data(), n), reply_timeout_us_));
 }
 
 Status UartMotorLink::ReadCounts(const uart::BoardInfo& board, size_t first_motor,
@@ -66,7 +98,7 @@ Status UartMotorLink::ReadCounts(const uart::BoardInfo& board, size_t first_moto
   if (Status s = transport_->ReadExact(std::span(frame.data(), reply_size), reply_timeout_us_);
       !s.ok()) {
     resync_ = true;
-    return s;
+    return Watch(std::move(s));
   }
   uart::SensorReply reply;
   if (Status s = uart::DecodeCurrentReply(std::span(frame.data(), reply_size), board, &reply);
@@ -81,23 +113,32 @@ Status UartMotorLink::ReadCounts(const uart::BoardInfo& board, size_t first_moto
   return Status::Ok();
 }
 
-void UartMotorLink::Prepare() {
+Status UartMotorLink::Prepare() {
   // A posted reply nobody collected is read (keeping the counters' unwrapping continuous) and
   // dropped; one that does not come sets resync_.
   if (posted_) {
     uint32_t buttons = 0;
     (void)Collect(posted_counts_, &buttons);
   }
+  if (!transport_) {
+    if (source_) transport_ = source_->Take();
+    // Short enough for std::string's inline buffer: while the line is away the loop gets this
+    // every tick, and the loop does not allocate.
+    if (!transport_) return Error{ErrorCode::kUnavailable, "no serial line"};
+    posted_ = false;
+    resync_ = false;
+  }
   // A reply that missed its deadline may still arrive: drop it before asking again.
   if (resync_) {
     transport_->DiscardInput();
     resync_ = false;
   }
+  return Status::Ok();
 }
 
 Status UartMotorLink::Exchange(std::span<const int16_t> command, std::span<int64_t> counts,
                                uint32_t* buttons) {
-  Prepare();
+  if (Status s = Prepare(); !s.ok()) return s;
   size_t motor = 0;
   for (const uart::BoardInfo& b : boards_) {
     const auto n = static_cast<size_t>(b.n_motor);
@@ -111,8 +152,8 @@ Status UartMotorLink::Exchange(std::span<const int16_t> command, std::span<int64
 }
 
 Status UartMotorLink::Post(std::span<const int16_t> command) {
-  Prepare();
   if (boards_.empty()) return FailedPrecondition("UART motor link: Post() before Open()");
+  if (Status s = Prepare(); !s.ok()) return s;
   // Boards share one line: all but the last answer before the next is addressed, so their
   // replies cannot overlap; only the last board's reply is left outstanding.
   size_t motor = 0;

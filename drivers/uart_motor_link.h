@@ -11,6 +11,12 @@
 
 namespace rheo::drivers {
 
+/// Asks each board of `board_ids` (in order) for its board-info over `transport` and checks they
+/// drive `num_motors` motors in all. Opening a link does this; so does reopening a line.
+Result<std::vector<uart::BoardInfo>> IdentifyUartBoards(ByteTransport& transport,
+                                                        const std::vector<int>& board_ids,
+                                                        int num_motors);
+
 /// Drives the boards with `board_ids` (motor order follows the list) through `transport`.
 class UartMotorLink final : public MotorLink {
  public:
@@ -29,18 +35,30 @@ class UartMotorLink final : public MotorLink {
   Status Post(std::span<const int16_t> command) override;
   Status Collect(std::span<int64_t> counts, uint32_t* buttons) override;
   bool posted() const override { return posted_; }
+  LineStats line_stats() const override;
+
+  /// From now on a line that fails as gone (kUnavailable: EIO, a hang-up) is handed to `source`,
+  /// and while there is none every call fails at once (no I/O, no wait) until `source` offers a
+  /// reopened one, which the next call takes. The counters' unwrapping carries on across the
+  /// new line: the boards kept their power (a USB serial adapter was pulled out, not the boards'
+  /// supply). Call after Open(), before the link is shared with other threads.
+  void SetLineSource(std::unique_ptr<LineSource> source);
 
   /// Boards found by Open(), in motor order.
   const std::vector<uart::BoardInfo>& boards() const { return boards_; }
 
  private:
-  // Collects (and drops) a reply still outstanding, then discards input after a failure.
-  void Prepare();
+  // Collects (and drops) a reply still outstanding, takes a reopened line when there is none,
+  // then discards input after a failure. Fails when there is no line.
+  Status Prepare();
+  // `s` from the transport: a line that failed as gone goes back to source_.
+  Status Watch(Status s);
   Status WriteCommand(const uart::BoardInfo& board, std::span<const int16_t> command);
   // Reads one board's reply into counts[first_motor...]; a failure sets resync_.
   Status ReadCounts(const uart::BoardInfo& board, size_t first_motor, std::span<int64_t> counts);
 
-  std::unique_ptr<ByteTransport> transport_;
+  std::unique_ptr<ByteTransport> transport_;  // null while the line is away (source_ only)
+  std::unique_ptr<LineSource> source_;        // null: the line is never reopened
   std::vector<int> board_ids_;
   int reply_timeout_us_;
   std::vector<uart::BoardInfo> boards_;

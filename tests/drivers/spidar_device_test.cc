@@ -2,9 +2,12 @@
 // against the emulator on a pseudo-terminal (lockstep: 1 ms of physics per exchange).
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <thread>
+#include <vector>
 
 #include "alloc_counter.h"
+#include "common/clock.h"
 #include "drivers/device_factory.h"
 #include "drivers/spidar_emulator.h"
 #include "drivers/spidar_g.h"
@@ -325,6 +328,194 @@ TEST_F(SpidarDeviceTest, LostBoardIsAProtocolFault) {
   EXPECT_FALSE(s.ok());
   EXPECT_TRUE(dev_->status().faults & kFaultProtocol);
   EXPECT_EQ(dev_->status().protocol_errors, 1u);
+}
+
+// The line a USB serial adapter gives, pulled out and plugged in again: the emulator closes its
+// end (the driver's reads see a hang-up, its writes EIO) and comes back on a new pty behind the
+// same name. The driver reports the loss at once, every exchange then fails without waiting on
+// the line, its reopener thread tries with a growing backoff, and after the replug the boards
+// are identified again, the first command on the new line is minimum tension, and force comes
+// back through the rate limiter (a ramp from zero).
+TEST(SpidarLineReopen, AnUnpluggedLineIsReopenedWithAGrowingBackoff) {
+  const SpidarConfig config = testutil::LoadFrame("x5");
+  EmulatorOptions opt;
+  opt.lockstep = true;
+  auto started = SpidarEmulator::Start(config, opt);
+  ASSERT_TRUE(started.ok()) << started.error().message;
+  SpidarEmulator& emu = **started;
+  SpidarOpenOptions oo;
+  oo.reply_timeout_us = 200'000;  // a wait on a reply would show in the timings below
+  oo.reopen_options.first_backoff_ns = 20'000'000;
+  oo.reopen_options.max_backoff_ns = 160'000'000;
+  auto opened = OpenSpidarG(config, emu.line_path(), oo);
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  SpidarG& dev = **opened;
+  for (int k = 0; k < 300; ++k) ASSERT_TRUE(dev.Exchange(kDt).ok());  // the grip settles
+  ASSERT_TRUE(dev.Calibrate().ok());
+  const Wrench push{Vec3(0.0, 0.0, 2.0), Vec3::Zero()};
+  for (int k = 0; k < 50; ++k) {
+    ASSERT_TRUE(dev.Exchange(kDt).ok());
+    dev.SetWrench(push);
+  }
+  std::array<int16_t, 8> min_digits;
+  for (int i = 0; i < 8; ++i) {
+    const auto& s = config.strings[i];
+    min_digits[i] = static_cast<int16_t>(std::lround(
+        s.command_sign * s.min_tension * s.volts_per_newton * config.board.digits_per_volt));
+  }
+  ASSERT_NE(emu.Snapshot().last_command, min_digits);
+  const uint64_t enumerations = emu.Snapshot().enumerations;
+
+  ASSERT_TRUE(emu.Unplug().ok());
+  EXPECT_FALSE(std::filesystem::exists(emu.line_path()));
+  EXPECT_EQ(emu.pty_path(), "");
+  Status lost = dev.Exchange(kDt);
+  ASSERT_FALSE(lost.ok());
+  EXPECT_EQ(lost.error().code, ErrorCode::kUnavailable) << lost.error().message;
+  EXPECT_FALSE(dev.status().connected);
+  EXPECT_TRUE(dev.status().faults & kFaultNotConnected);
+  EXPECT_FALSE(dev.status().line.up);
+  EXPECT_EQ(dev.status().line.losses, 1u);
+  EXPECT_GT(dev.status().line.down_since_ns, 0);
+  // Nothing to display: minimum tension, no wrench, whatever is asked.
+  dev.SetWrench(push);
+  EXPECT_EQ(dev.status().requested.force.norm(), 0.0);
+  for (int i = 0; i < 8; ++i)
+    EXPECT_NEAR(dev.status().tensions[i], config.strings[i].min_tension, 1e-12);
+
+  // Exchanging every millisecond, as the loop does, while the reopener tries: each exchange
+  // fails at once (no I/O), and the attempts come further and further apart.
+  std::vector<int64_t> attempt_ns;
+  int64_t slowest_ns = 0;
+  uint64_t seen = dev.status().line.attempts;
+  const int64_t give_up = MonotonicNowNs() + 10'000'000'000;
+  while (attempt_ns.size() < 5 && MonotonicNowNs() < give_up) {
+    const int64_t t0 = MonotonicNowNs();
+    EXPECT_FALSE(dev.Exchange(kDt).ok());
+    dev.SetWrench(push);
+    EXPECT_FALSE(dev.Post().ok());
+    const int64_t t1 = MonotonicNowNs();
+    slowest_ns = std::max(slowest_ns, t1 - t0);
+    const LineStats& line = dev.status().line;
+    EXPECT_LE(line.backoff_ns, oo.reopen_options.max_backoff_ns);
+    if (line.attempts != seen) {
+      seen = line.attempts;
+      attempt_ns.push_back(t1);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_EQ(attempt_ns.size(), 5u) << "the reopener made " << attempt_ns.size() << " attempts";
+  // An exchange that waited on the line would take a reply timeout (200 ms).
+  EXPECT_LT(slowest_ns, 50'000'000)
+      << "an exchange with the line away took " << slowest_ns * 1e-6 << " ms";
+  std::vector<double> gaps_ms;
+  for (size_t k = 1; k < attempt_ns.size(); ++k)
+    gaps_ms.push_back((attempt_ns[k] - attempt_ns[k - 1]) * 1e-6);
+  // Nominal 40, 80, 160, 160 ms (doubling from 20 ms to the 160 ms cap). A late wake-up can only
+  // lengthen a gap, so the lower bounds are firm and the growth is checked with room to spare.
+  EXPECT_GT(gaps_ms[0], 0.8 * 40);
+  EXPECT_GT(gaps_ms[1], 0.8 * 80);
+  EXPECT_GT(gaps_ms[2], 0.8 * 160);
+  EXPECT_GT(gaps_ms[1], 1.2 * gaps_ms[0]);
+  EXPECT_GT(gaps_ms[2], 1.2 * gaps_ms[1]);
+  EXPECT_EQ(dev.status().line.backoff_ns, oo.reopen_options.max_backoff_ns);
+  EXPECT_EQ(dev.status().line.reopens, 0u);
+  std::printf(
+      "attempt gaps %.1f, %.1f, %.1f, %.1f ms (nominal 40, 80, 160, 160); slowest "
+      "exchange while away %.3f ms\n",
+      gaps_ms[0], gaps_ms[1], gaps_ms[2], gaps_ms[3], slowest_ns * 1e-6);
+
+  ASSERT_TRUE(emu.Replug().ok());
+  EXPECT_TRUE(std::filesystem::exists(emu.line_path()));
+  const int64_t replugged = MonotonicNowNs();
+  Status back = Error{ErrorCode::kUnavailable, "not yet"};
+  while (!back.ok() && MonotonicNowNs() < replugged + 5'000'000'000) {
+    back = dev.Exchange(kDt);
+    dev.SetWrench(push);
+    if (!back.ok()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  const double back_ms = (MonotonicNowNs() - replugged) * 1e-6;
+  EXPECT_TRUE(dev.status().connected);
+  EXPECT_TRUE(dev.status().line.up);
+  EXPECT_EQ(dev.status().line.reopens, 1u);
+  EXPECT_EQ(dev.status().line.backoff_ns, 0);
+  EXPECT_EQ(dev.status().line.down_since_ns, 0);
+  GripSnapshot g = emu.Snapshot();
+  EXPECT_EQ(g.replugs, 1u);
+  EXPECT_EQ(g.enumerations, enumerations + 1) << "the board was not identified again";
+  ASSERT_GE(g.commands_on_line, 1u);
+  EXPECT_EQ(g.first_command_on_line, min_digits);
+  // The loss stays latched (minimum tension) until it is cleared, as the daemon's loop does after
+  // enough good exchanges.
+  EXPECT_TRUE(dev.status().faults & kFaultNotConnected);
+  for (int k = 0; k < 20; ++k) {
+    ASSERT_TRUE(dev.Exchange(kDt).ok());
+    dev.SetWrench(push);
+  }
+  EXPECT_EQ(emu.Snapshot().last_command, min_digits);
+  dev.ClearFaults();
+  ASSERT_TRUE(dev.Exchange(kDt).ok());
+  dev.SetWrench(push);
+  EXPECT_EQ(dev.status().faults, 0u);
+  // The rate limiter starts from zero: one tick of 2000 N/s allows 1/1000 of it.
+  EXPECT_NEAR(dev.status().requested.force.norm(), config.limits.max_force_rate * kDt, 1e-9);
+  for (int k = 0; k < 5; ++k) {
+    ASSERT_TRUE(dev.Exchange(kDt).ok());
+    dev.SetWrench(push);
+  }
+  EXPECT_NEAR(dev.status().requested.force.z(), 2.0, 1e-9);
+  EXPECT_NE(emu.Snapshot().last_command, min_digits);
+  std::printf("back %.1f ms after the replug, %llu attempts in all\n", back_ms,
+              static_cast<unsigned long long>(dev.status().line.attempts));
+}
+
+// Whatever answers behind the name after a replug must be the boards the device was opened with:
+// an emulator of another model there is refused, attempt after attempt, and the line stays away
+// until the right board is back.
+TEST(SpidarLineReopen, AnotherBoardBehindTheNameIsRefused) {
+  const SpidarConfig config = testutil::LoadFrame("x5");
+  EmulatorOptions opt;
+  opt.lockstep = true;
+  auto first = SpidarEmulator::Start(config, opt);
+  ASSERT_TRUE(first.ok()) << first.error().message;
+  SpidarOpenOptions oo;
+  oo.reply_timeout_us = 200'000;
+  oo.reopen_options.first_backoff_ns = 10'000'000;
+  oo.reopen_options.max_backoff_ns = 40'000'000;
+  auto opened = OpenSpidarG(config, (*first)->line_path(), oo);
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  SpidarG& dev = **opened;
+  ASSERT_TRUE(dev.Exchange(kDt).ok());
+  ASSERT_TRUE((*first)->Unplug().ok());
+  EXPECT_FALSE(dev.Exchange(kDt).ok());
+
+  EmulatorOptions other = opt;
+  other.model = 5;
+  other.line_path = (*first)->line_path();
+  auto second = SpidarEmulator::Start(config, other);
+  ASSERT_TRUE(second.ok()) << second.error().message;
+  const int64_t give_up = MonotonicNowNs() + 10'000'000'000;
+  while (((*second)->Snapshot().enumerations < 2 || dev.status().line.attempts < 2) &&
+         MonotonicNowNs() < give_up) {
+    EXPECT_FALSE(dev.Exchange(kDt).ok());
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  EXPECT_GE((*second)->Snapshot().enumerations, 2u) << "the other board was not asked";
+  EXPECT_EQ((*second)->Snapshot().current_commands, 0u) << "the other board got commands";
+  EXPECT_EQ(dev.status().line.reopens, 0u);
+  EXPECT_FALSE(dev.status().connected);
+
+  second->reset();  // its name goes with it
+  ASSERT_TRUE((*first)->Replug().ok());
+  Status back = Error{ErrorCode::kUnavailable, "not yet"};
+  while (!back.ok() && MonotonicNowNs() < give_up) {
+    back = dev.Exchange(kDt);
+    if (!back.ok()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(dev.status().line.reopens, 1u);
+  EXPECT_TRUE(dev.status().connected);
 }
 
 // The mode rheod uses: the emulator's physics follows the wall clock. The loop here runs as fast
