@@ -49,6 +49,7 @@ void PrintDeviceStatus(const rheo::v1::DeviceStatus& st) {
       (unsigned long long)c.protocol_errors(), (unsigned long long)c.deadline_misses(),
       (unsigned long long)c.watchdog_trips(), (unsigned long long)c.recoveries(),
       (unsigned long long)c.renderer_errors());
+  PrintLineCounters(c);
   std::printf("  loop period p50 %.1f us, p99 %.1f us, max %.1f us; %llu late ticks\n",
               st.loop_period().p50_us(), st.loop_period().p99_us(), st.loop_period().max_us(),
               (unsigned long long)st.loop_late_ticks());

@@ -31,7 +31,19 @@ int ShowStatus(const Global& g, bool json) {
   const auto& l = st.loop();
   std::printf("rheod %s at %s, up %.1f s, data dir %s\n", st.version().c_str(),
               st.listen_address().c_str(), st.uptime_s(), st.data_dir().c_str());
-  std::printf("device: %s\n", rheo::v1::DeviceKind_Name(st.device()).c_str());
+  std::printf("device: %s", rheo::v1::DeviceKind_Name(st.device()).c_str());
+  if (st.has_device_counters()) {
+    const auto& c = st.device_counters();
+    std::printf(
+        ", connected %s; %llu exchanges, %llu device errors, %llu protocol errors, %llu "
+        "recoveries\n",
+        st.device_connected() ? "yes" : "NO", (unsigned long long)c.exchanges(),
+        (unsigned long long)c.device_errors(), (unsigned long long)c.protocol_errors(),
+        (unsigned long long)c.recoveries());
+    PrintLineCounters(c);
+  } else {
+    std::printf("\n");
+  }
   std::printf(
       "loop: %.0f Hz, %llu ticks, %llu late, %llu overruns, %llu skipped; SCHED_FIFO %s, "
       "memory locked %s\n",

@@ -2,6 +2,7 @@
 #include <google/protobuf/util/json_util.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
@@ -37,6 +38,16 @@ const char* CodeName(grpc::StatusCode c) {
 }
 
 }  // namespace
+
+void PrintLineCounters(const rheo::v1::DeviceCounters& c) {
+  std::printf("  serial line: lost %llu times, reconnect attempts %llu, reconnects %llu",
+              (unsigned long long)c.line_losses(), (unsigned long long)c.reconnect_attempts(),
+              (unsigned long long)c.reconnects());
+  if (c.disconnected_s() > 0)
+    std::printf("; AWAY for %.1f s, reconnect backoff %.1f s", c.disconnected_s(),
+                c.reconnect_backoff_s());
+  std::printf("\n");
+}
 
 int Fail(const grpc::Status& s) {
   std::cerr << CodeName(s.error_code()) << ": " << s.error_message() << "\n";

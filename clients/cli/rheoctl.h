@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "rheo/v1/device.pb.h"
 #include "rheo/v1/objects.pb.h"
 
 namespace rheoctl {
@@ -51,6 +52,10 @@ grpc::Status Unary(const Global& g, Method method, const Request& request, Respo
   SetDeadline(ctx, g, default_s);
   return ((*stub).*method)(&ctx, request, response);
 }
+
+/// The serial line's counters (lost, reconnect attempts, reconnects; while away, for how long and
+/// the backoff), a line of `rheoctl status` and `rheoctl device status`.
+void PrintLineCounters(const rheo::v1::DeviceCounters& c);
 
 /// A sketch file: stroke JSON, a contour JSON ({"contour": [[x, y], ...]}) or a PNG/JPEG picture.
 /// False (with a message) when it cannot be read.

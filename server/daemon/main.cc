@@ -446,6 +446,10 @@ int main(int argc, char** argv) {
     dopts.reply_timeout_us = static_cast<int>(reply_ms * 1e3);
     dopts.realtime = flags.realtime;
     dopts.tool_radius = flags.tool_radius;
+    // The reopener's thread says when the serial line goes and comes back (never the loop).
+    dopts.log = [device = flags.device](const std::string& line) {
+      spdlog::warn("device {}: {}", device, line);
+    };
     auto opened = DeviceLink::Open(dopts);
     if (!opened.ok()) {
       spdlog::error("device {}: {}", flags.device, opened.error().message);

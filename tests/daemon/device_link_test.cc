@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "daemon/loop/seq_slot.h"
+#include "drivers/device_factory.h"
 #include "held_tet.h"
 #include "sim/sim.h"
 
@@ -154,6 +155,145 @@ TEST(DeviceLink, LineFaultsAreReportedTheStringsGoSlackAndTheLinkRecovers) {
         static_cast<unsigned long long>(t.recoveries - recoveries));
     engine.Stop();
   }
+}
+
+// A USB serial adapter pulled out and plugged in again while the hand presses an object: the
+// emulator's end of the line closes and later comes back on a new pty behind the same name. The
+// loop reports the device disconnected, commands minimum tension, displays and applies nothing,
+// and keeps its rate (no tick waits on the port); the reopener thread tries with a growing
+// backoff; after the replug the board is identified again, the first command it gets is minimum
+// tension, and the loop's recovery clears the stop so the press is felt again.
+TEST(DeviceLink, AnUnpluggedLineIsReportedReopenedWithAGrowingBackoffAndTheForceComesBack) {
+  DeviceLinkOptions o;
+  o.kind = DeviceKind::kSimSpidarG;
+  o.config_path = std::string(RHEO_DEVICES) + "/spidar_g_x5.json";
+  o.realtime = false;
+  o.reply_timeout_us = 20000;
+  o.watchdog_timeout_ns = 100'000'000;
+  auto link = DeviceLink::Open(o);
+  ASSERT_TRUE(link.ok()) << link.error().message;
+  drivers::SpidarEmulator& emu = *(*link)->emulator();
+  auto config = drivers::LoadSpidarConfigFile(o.config_path);
+  ASSERT_TRUE(config.ok()) << config.error().message;
+  std::array<int16_t, 8> min_digits;
+  for (int i = 0; i < 8; ++i) {
+    const auto& s = config->strings[i];
+    min_digits[i] = static_cast<int16_t>(std::lround(
+        s.command_sign * s.min_tension * s.volts_per_newton * config->board.digits_per_volt));
+  }
+
+  // The tetrahedron under the tool: the device frame's origin 1 cm above its apex.
+  auto held = testing::MakeHeldTet();
+  ASSERT_TRUE(held.ok()) << held.error().message;
+  const Vec3 origin(0.012, 0.05, 0.012);
+  auto contact =
+      (*link)->MakeContact(held->mesh.surface, held->object->positions(), origin, held->min_mass);
+  ASSERT_TRUE(contact.ok()) << contact.error().message;
+  Engine engine(TestOptions());
+  engine.AttachDevice(link->get());
+  engine.Start();
+  Command place;
+  place.type = Command::Type::kSetToolOrigin;
+  place.vec = {origin.x(), origin.y(), origin.z()};
+  ASSERT_TRUE(engine.WaitApplied(engine.Submit(place), 5'000'000'000));
+  Command add;
+  add.type = Command::Type::kAddObject;
+  add.instance_id = 7;
+  add.object = held->object.release();
+  add.contact = contact->release();
+  ASSERT_TRUE(engine.WaitApplied(engine.Submit(add), 5'000'000'000));
+  // The hand presses the grip 2 cm down: 1 cm into the apex.
+  drivers::Pose down;
+  down.position = Vec3(0.0, -0.02, 0.0);
+  emu.HoldHand(down);
+  ToolTelemetry t = WaitFor(engine, [](const ToolTelemetry& t) {
+    return t.connected && t.faults == 0 && t.in_contact && t.displayed_force[1] > 0.2;
+  });
+  ASSERT_TRUE(t.connected && t.faults == 0 && t.displayed_force[1] > 0.2)
+      << "no press: faults 0x" << std::hex << t.faults << std::dec << ", force "
+      << t.displayed_force[1] << " N";
+  const double pressed = t.displayed_force[1];
+  const uint64_t recoveries = t.recoveries;
+  const uint64_t enumerations = emu.Snapshot().enumerations;
+
+  const int64_t unplugged = rt::Loop::NowNs();
+  ASSERT_TRUE(emu.Unplug().ok());
+  t = WaitFor(engine, [](const ToolTelemetry& t) { return !t.connected; });
+  const double report_ms = (rt::Loop::NowNs() - unplugged) * 1e-6;
+  ASSERT_FALSE(t.connected) << "the unplug was not reported";
+  EXPECT_LT(report_ms, 1000.0);
+  EXPECT_TRUE(t.faults & drivers::kFaultNotConnected);
+  EXPECT_EQ(t.line_losses, 1u);
+  // A tick later: nothing displayed, nothing put on the object, every string at minimum.
+  t = WaitFor(engine, [&](const ToolTelemetry& u) { return u.tick > t.tick + 2; });
+  EXPECT_FALSE(t.object_loaded);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(t.requested_force[k], 0.0);
+    EXPECT_EQ(t.object_force[k], 0.0);
+  }
+  for (int i = 0; i < t.num_motors; ++i)
+    EXPECT_NEAR(t.tensions[i], config->strings[i].min_tension, 1e-9);
+
+  // The reopener's attempts, as the loop reports them, while the line is away (nominal 0.1 s
+  // after the loss, then 0.2, 0.4 and 0.8 s apart). The loop keeps ticking all the while.
+  std::vector<int64_t> attempt_ns;
+  uint64_t seen = t.reconnect_attempts;
+  double longest_backoff_s = 0.0;
+  const uint64_t tick0 = t.tick;
+  const int64_t away0 = rt::Loop::NowNs();
+  while (attempt_ns.size() < 4 && rt::Loop::NowNs() < away0 + 20'000'000'000) {
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+    t = engine.tool();
+    longest_backoff_s = std::max(longest_backoff_s, t.reconnect_backoff_s);
+    if (t.reconnect_attempts != seen) {
+      seen = t.reconnect_attempts;
+      attempt_ns.push_back(rt::Loop::NowNs());
+    }
+  }
+  const double away_s = (rt::Loop::NowNs() - away0) * 1e-9;
+  const double ticks_per_s = (t.tick - tick0) / away_s;
+  ASSERT_EQ(attempt_ns.size(), 4u) << "attempts seen: " << attempt_ns.size();
+  EXPECT_FALSE(t.connected);
+  EXPECT_EQ(t.reconnects, 0u);
+  EXPECT_GT(t.disconnected_s, 1.0);
+  EXPECT_GT(longest_backoff_s, 0.5);
+  EXPECT_LE(longest_backoff_s, o.reconnect_backoff_max_ns * 1e-9);
+  const double gap1 = (attempt_ns[1] - attempt_ns[0]) * 1e-9,
+               gap2 = (attempt_ns[2] - attempt_ns[1]) * 1e-9,
+               gap3 = (attempt_ns[3] - attempt_ns[2]) * 1e-9;
+  // Generous: a busy machine only lengthens a wait, and the loop publishes the count a tick late.
+  EXPECT_GT(gap1, 0.15);
+  EXPECT_GT(gap2, 1.2 * gap1);
+  EXPECT_GT(gap3, 1.2 * gap2);
+  // The loop at its rate (1 kHz) while the port is away: a tick that waited on open() or a reply
+  // timeout (20 ms) would show. Half the rate leaves room for a loaded machine.
+  EXPECT_GT(ticks_per_s, 500.0);
+
+  const int64_t replugged = rt::Loop::NowNs();
+  ASSERT_TRUE(emu.Replug().ok());
+  t = WaitFor(engine, [](const ToolTelemetry& t) { return t.reconnects > 0; });
+  const double reopen_ms = (rt::Loop::NowNs() - replugged) * 1e-6;
+  ASSERT_EQ(t.reconnects, 1u) << "not reopened";
+  t = WaitFor(engine, [](const ToolTelemetry& t) {
+    return t.connected && t.faults == 0 && t.displayed_force[1] > 0.2;
+  });
+  const double felt_ms = (rt::Loop::NowNs() - replugged) * 1e-6;
+  EXPECT_TRUE(t.connected) << "not connected again";
+  EXPECT_EQ(t.faults, 0u) << "the stop was not cleared";
+  EXPECT_GT(t.displayed_force[1], 0.2) << "the press is not felt again";
+  EXPECT_GE(t.recoveries, recoveries + 1);
+  EXPECT_EQ(t.disconnected_s, 0.0);
+  EXPECT_EQ(t.reconnect_backoff_s, 0.0);
+  const drivers::GripSnapshot g = emu.Snapshot();
+  EXPECT_EQ(g.enumerations, enumerations + 1) << "the board was not identified again";
+  EXPECT_EQ(g.first_command_on_line, min_digits) << "the first command on the new line";
+  std::printf(
+      "unplug reported in %.1f ms; attempts %.0f, %.0f, %.0f ms apart (nominal 200, 400, 800); "
+      "%.0f ticks/s while away; reopened %.0f ms after the replug, felt again (%.2f N, %.2f N "
+      "before) at %.0f ms\n",
+      report_ms, gap1 * 1e3, gap2 * 1e3, gap3 * 1e3, ticks_per_s, reopen_ms, t.displayed_force[1],
+      pressed, felt_ms);
+  engine.Stop();
 }
 
 TEST(DeviceLink, NetworkToolPressesATetrahedronWithEqualAndOppositeForces) {

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <chrono>
+#include <thread>
 
 #include "alloc_counter.h"
 #include "daemon/device/device_link.h"
@@ -76,6 +78,47 @@ TEST(DeviceTickAlloc, SpidarGThroughTheEmulatorAllocatesNothing) {
   RunTicks(
       **link, 300, [](int) {}, &allocs, &contact);
   EXPECT_EQ(allocs, 0);
+  (*link)->Shutdown();
+}
+
+// The line pulled out and plugged in again: the ticks while it is away (each exchange failing
+// at once) and the tick that takes the reopened line allocate nothing on the loop's thread; the
+// reopening (open(), identification, the lost line's close) is the reopener thread's.
+TEST(DeviceTickAlloc, SpidarGWithItsLineAwayAndBackAllocatesNothing) {
+  DeviceLinkOptions o;
+  o.kind = DeviceKind::kSimSpidarG;
+  o.config_path = std::string(RHEO_DEVICES) + "/spidar_g_x5.json";
+  o.realtime = false;
+  o.reply_timeout_us = 50000;
+  o.watchdog_timeout_ns = 1'000'000'000;
+  o.reconnect_backoff_ns = 20'000'000;
+  o.reconnect_backoff_max_ns = 40'000'000;
+  auto link = DeviceLink::Open(o);
+  ASSERT_TRUE(link.ok()) << link.error().message;
+  drivers::SpidarEmulator& emu = *(*link)->emulator();
+  long allocs = -1;
+  int contact = 0;
+  RunTicks(
+      **link, 50, [](int) {}, &allocs, &contact);
+  EXPECT_EQ(allocs, 0);
+  ASSERT_TRUE(emu.Unplug().ok());
+  // The tick that finds the line gone builds its error message (the errno's words): once.
+  RunTicks(
+      **link, 1, [](int) {}, &allocs, &contact);
+  RunTicks(
+      **link, 300, [](int) {}, &allocs, &contact);
+  EXPECT_EQ(allocs, 0) << "ticks with the line away";
+  ASSERT_TRUE(emu.Replug().ok());
+  // Ticks until the reopened line is taken and answers (the reopener waits 40 ms at most).
+  long back_allocs = 0;
+  for (int k = 0; k < 100 && emu.Snapshot().commands_on_line < 50; ++k) {
+    RunTicks(
+        **link, 10, [](int) {}, &allocs, &contact);
+    back_allocs += allocs;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_GE(emu.Snapshot().commands_on_line, 50u) << "the line did not come back";
+  EXPECT_EQ(back_allocs, 0) << "ticks taking the reopened line";
   (*link)->Shutdown();
 }
 

@@ -4,6 +4,7 @@
 
 #include "daemon/api/convert.h"
 #include "daemon/api/services.h"
+#include "daemon/record/recorder.h"
 
 namespace rheo::daemon {
 
@@ -40,7 +41,12 @@ grpc::Status DaemonServiceImpl::GetStatus(grpc::ServerContext*, const v1::GetSta
   out->set_data_dir(ctx_.data_dir);
   FillLoopStatus(ctx_, out->mutable_loop());
   out->set_device(ctx_.device);
-  if (ctx_.device_link) out->add_capabilities("device");
+  if (ctx_.device_link) {
+    out->add_capabilities("device");
+    const ToolTelemetry t = ctx_.engine->tool();
+    out->set_device_connected(t.connected);
+    FillDeviceCounters(t, out->mutable_device_counters());
+  }
   out->set_frame_clients(static_cast<uint32_t>(ctx_.hub->clients()));
   out->set_scene_objects(static_cast<uint32_t>(ctx_.scene->size()));
   if (auto n = ctx_.store->Count(); n.ok()) out->set_stored_objects(static_cast<uint32_t>(*n));

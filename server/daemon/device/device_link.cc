@@ -76,12 +76,17 @@ Result<std::unique_ptr<DeviceLink>> DeviceLink::Open(const DeviceLinkOptions& op
       if (!emu.ok()) return emu.error();
       link->emulator_ = std::move(emu).value();
       link->emulator_->HoldHand(drivers::Pose());
-      port = link->emulator_->pty_path();
+      // The link's stable name, not the pty it points at now: the driver reopens it after an
+      // unplug, as it would /dev/serial/by-id/... of a real adapter.
+      port = link->emulator_->line_path();
     }
     if (port.empty())
       return InvalidArgument("--device spidar-g needs --device-port (e.g. /dev/ttyUSB0)");
     drivers::SpidarOpenOptions oo;
     oo.reply_timeout_us = options.reply_timeout_us;
+    oo.reopen_options.first_backoff_ns = options.reconnect_backoff_ns;
+    oo.reopen_options.max_backoff_ns = options.reconnect_backoff_max_ns;
+    oo.reopen_options.log = options.log;
     auto dev = drivers::OpenSpidarG(*config, port, oo);
     if (!dev.ok()) return dev.error();
     link->min_tension_ = config->strings[0].min_tension;
@@ -180,15 +185,24 @@ void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, Too
   } else {
     ++t_.device_errors;
   }
+  // The line to the boards: while it is away every exchange fails at once (no I/O) and the
+  // driver's reopener thread opens the port again with a growing backoff.
+  const drivers::LineStats& line = device_->status().line;
+  t_.line_losses = line.losses;
+  t_.reconnect_attempts = line.attempts;
+  t_.reconnects = line.reopens;
+  t_.reconnect_backoff_s = line.up ? 0.0 : line.backoff_ns * 1e-9;
+  t_.disconnected_s = !line.up && line.down_since_ns > 0 ? (done - line.down_since_ns) * 1e-9 : 0.0;
   // A line whose exchanges keep failing is not a connection, whatever the port says.
   constexpr double kLinkDownAbove = 0.5, kLinkUpBelow = 0.1, kShareWeight = 1.0 / 32.0;
   exchange_failure_share_ += kShareWeight * ((s.ok() ? 0.0 : 1.0) - exchange_failure_share_);
   if (exchange_failure_share_ > kLinkDownAbove) link_down_ = true;
   if (exchange_failure_share_ < kLinkUpBelow) link_down_ = false;
 
-  // A stall (watchdog trip, a missed reply) latched a stop; after enough good ticks, and unless
-  // someone pressed the emergency stop, the loop clears it.
-  const uint32_t stall = drivers::kFaultSafeStop | drivers::kFaultProtocol;
+  // A stall (watchdog trip, a missed reply) or a line that went away and is back latched a stop;
+  // after enough good ticks, and unless someone pressed the emergency stop, the loop clears it.
+  const uint32_t stall =
+      drivers::kFaultSafeStop | drivers::kFaultProtocol | drivers::kFaultNotConnected;
   const uint32_t faults = device_->status().faults;
   if ((faults & stall) && s.ok() && !estop_.load(std::memory_order_seq_cst)) {
     if (++healthy_ticks_ >= options_.recover_after_ticks) {
@@ -211,8 +225,9 @@ void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, Too
   command.torque = c.torque;
   // The renderer's wrench is the force on the hand: what the strings pull the grip with.
   device_->SetWrench(command);
-  // The command leaves now; its reply arrives while the loop sleeps and steps.
-  if (!device_->Post().ok()) ++t_.device_errors;
+  // The command leaves now; its reply arrives while the loop sleeps and steps. A tick whose
+  // exchange failed already counts once.
+  if (!device_->Post().ok() && s.ok()) ++t_.device_errors;
   // A command that leaves after the next tick's deadline reaches the motors a period late.
   if (drivers::MonotonicNowNs() - info.deadline_ns > static_cast<int64_t>(info.dt * 1e9))
     ++t_.deadline_misses;

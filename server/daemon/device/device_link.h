@@ -4,6 +4,7 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -39,6 +40,13 @@ struct DeviceLinkOptions {
   /// A loop that fed the watchdog again for this many ticks in a row with good exchanges clears
   /// the stop the stall caused (not an emergency stop); force comes back as a ramp.
   int recover_after_ticks = 100;
+  /// sim-spidar-g, spidar-g: a serial line that goes away (EIO, a hang-up) is reopened at the
+  /// port on the driver's reopener thread, never on the loop, waiting this long before the first
+  /// attempt and doubling the wait after each failure up to the cap [ns].
+  int64_t reconnect_backoff_ns = 100'000'000;
+  int64_t reconnect_backoff_max_ns = 2'000'000'000;
+  /// Lines about the line going and coming back (the reopener's thread; null: none).
+  std::function<void(const std::string&)> log;
 };
 
 /// Opened before the loop starts and attached with Engine::AttachDevice(); shut down after the

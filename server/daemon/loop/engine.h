@@ -115,6 +115,13 @@ struct ToolTelemetry {
   uint64_t calibrations = 0;     // successful calibrations
   uint64_t calibration_failures = 0;
   uint64_t input_seq = 0;  // network tool: the last input sequence number the loop used
+  // The serial line (SPIDAR-G): times it went away, reopen attempts and reopens since start; the
+  // wait before the next attempt and how long it has been away (both 0 while it is up) [s].
+  uint64_t line_losses = 0;
+  uint64_t reconnect_attempts = 0;
+  uint64_t reconnects = 0;
+  double reconnect_backoff_s = 0.0;
+  double disconnected_s = 0.0;
 };
 
 /// One scene object as the loop holds it: a SimObject stepped whole every tick, or (`multirate`

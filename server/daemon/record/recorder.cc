@@ -942,6 +942,11 @@ void FillDeviceCounters(const ToolTelemetry& t, v1::DeviceCounters* c) {
   c->set_calibrations(t.calibrations);
   c->set_calibration_failures(t.calibration_failures);
   c->set_tick(t.tick);
+  c->set_line_losses(t.line_losses);
+  c->set_reconnect_attempts(t.reconnect_attempts);
+  c->set_reconnects(t.reconnects);
+  c->set_reconnect_backoff_s(t.reconnect_backoff_s);
+  c->set_disconnected_s(t.disconnected_s);
 }
 
 }  // namespace rheo::daemon
