@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# rheod under a lab's load, with real processes: rheod --device sim-spidar-g, one object (the bean
-# at 6 mm, about 5k tetrahedra) pressed by the emulated hand, and for S seconds at once:
-#   - W frame watchers (rheoctl watch, gRPC, 60 frames/s with positions);
+# rheod under a lab's load, with real processes: rheod --device sim-spidar-g with its browser
+# gateway, one object (the bean at 6 mm, about 5k tetrahedra) pressed by the emulated hand, and
+# for S seconds at once:
+#   - W frame watchers (rheoctl watch, gRPC, 60 frames/s with positions, JSON);
+#   - V studio viewers through the gateway's WebSocket (bench/web/web_watchers: the studio's own
+#     request, 30 frames/s with 16-bit positions, JSON), as V browser tabs of /?view would be;
 #   - a mesh job every 2 s (the heart at 12 mm, stored);
 #   - a parameter change every 100 ms (k_v between two values; a rheoctl process each, so the
 #     clients' own start-up shares the machine too);
@@ -9,29 +12,45 @@
 # Before that, the same daemon runs S/4 seconds with the object and the hand only: the idle floor.
 # Prints, for the floor and the load: the loop's ticks, late ticks, overruns and skipped periods
 # (per 1000 ticks), its period percentiles (cumulative since start, as rheoctl status gives them),
-# frames each watcher got and dropped, the recording's dropped ticks and events, rheod's RSS and
-# open descriptors at the start and the end, and the jobs and changes done.
-#   bench/reliability/load.sh [--build DIR] [--seconds S] [--watchers W] [--resolution M]
-# (The browser gateway's viewers are measured by bench/web/viewers_bench.)
+# frames each watcher of either kind got and dropped, the recording's dropped ticks and events,
+# rheod's RSS and open descriptors at the start and the end, and the jobs and changes done.
+# --sample N (a soak: e.g. --seconds 600 --sample 10) also samples rheod's RSS and open
+# descriptors every N seconds of the load and prints their least-squares slopes (MB/min, fds/min)
+# with the first and last samples.
+#   bench/reliability/load.sh [--build DIR] [--seconds S] [--watchers W] [--web-watchers V]
+#                             [--sample N] [--resolution M]
+# (bench/web/viewers_bench measures the gateway's viewers alone.)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 BUILD=build/dev
 SECONDS_RUN=60
-WATCHERS=32
+WATCHERS=16
+WEB_WATCHERS=16
+WEB_RATE=30
+SAMPLE=0
 RESOLUTION=0.006
+usage="usage: $0 [--build DIR] [--seconds S] [--watchers W] [--web-watchers V] [--sample N] [--resolution M]"
+int() {  # option value: a whole number >= $3
+  [[ "$2" =~ ^[0-9]+$ ]] && [ "$2" -ge "$3" ] || { echo "$1: '$2' is not a whole number >= $3" >&2; exit 2; }
+}
 while [ $# -gt 0 ]; do
+  [ $# -ge 2 ] || { echo "$1: needs a value; $usage" >&2; exit 2; }
   case "$1" in
-    --build) BUILD=$2; shift 2 ;;
-    --seconds) SECONDS_RUN=$2; shift 2 ;;
-    --watchers) WATCHERS=$2; shift 2 ;;
-    --resolution) RESOLUTION=$2; shift 2 ;;
-    *) echo "usage: $0 [--build DIR] [--seconds S] [--watchers W] [--resolution M]" >&2; exit 2 ;;
+    --build) BUILD=$2 ;;
+    --seconds) int "$1" "$2" 4; SECONDS_RUN=$2 ;;
+    --watchers) int "$1" "$2" 0; WATCHERS=$2 ;;
+    --web-watchers) int "$1" "$2" 0; WEB_WATCHERS=$2 ;;
+    --sample) int "$1" "$2" 1; SAMPLE=$2 ;;
+    --resolution) RESOLUTION=$2 ;;
+    *) echo "$usage" >&2; exit 2 ;;
   esac
+  shift 2
 done
 RHEOD="$BUILD/server/daemon/rheod"
 RHEOCTL="$BUILD/clients/cli/rheoctl"
-for f in "$RHEOD" "$RHEOCTL"; do
-  [ -x "$f" ] || { echo "missing $f (build rheod and rheoctl in $BUILD)" >&2; exit 1; }
+WEB_WATCH="$BUILD/bench/web/web_watchers"
+for f in "$RHEOD" "$RHEOCTL" "$WEB_WATCH"; do
+  [ -x "$f" ] || { echo "missing $f (build rheod, rheoctl and web_watchers in $BUILD)" >&2; exit 1; }
 done
 
 PIDS=()
@@ -43,16 +62,18 @@ trap cleanup EXIT
 
 data=$(mktemp -d /tmp/rheo-load-XXXXXX)
 log="$data/rheod.log"
-"$RHEOD" --listen 127.0.0.1:0 --http off --data-dir "$data" --device sim-spidar-g \
+"$RHEOD" --listen 127.0.0.1:0 --http 127.0.0.1:0 --data-dir "$data" --device sim-spidar-g \
   --watchdog-timeout 100 --limit-streams 0 --limit-calls 0 2>"$log" &
 RHEOD_PID=$!
 PIDS=($RHEOD_PID)
-addr=""
+addr="" web_port=""
 for _ in $(seq 1 400); do
-  addr=$(grep -o 'listening on [0-9.]*:[0-9]*' "$log" | awk '{print $3}') && [ -n "$addr" ] && break
+  addr=$(grep -o 'listening on [0-9.]*:[0-9]*' "$log" | awk '{print $3}' || true)
+  web_port=$(grep -o 'studio at http://127.0.0.1:[0-9]*' "$log" | grep -o '[0-9]*$' || true)
+  [ -n "$addr" ] && [ -n "$web_port" ] && break
   sleep 0.025
 done
-[ -n "$addr" ] || { echo "rheod did not start:" >&2; cat "$log" >&2; exit 1; }
+[ -n "$addr" ] && [ -n "$web_port" ] || { echo "rheod did not start:" >&2; cat "$log" >&2; exit 1; }
 ctl=("$RHEOCTL" --server "$addr" --token-file "$data/admin.token")
 rss() { awk '/^VmRSS:/ {print $2}' "/proc/$RHEOD_PID/status"; }
 fds() { ls "/proc/$RHEOD_PID/fd" | wc -l; }
@@ -85,7 +106,8 @@ sleep 1
 PIDS+=($!)
 sleep 2
 
-echo "# bean at $RESOLUTION m: $tets tetrahedra; $(nproc) cores; $WATCHERS watchers; $SECONDS_RUN s of load"
+echo "# bean at $RESOLUTION m: $tets tetrahedra; $(nproc) cores; $WATCHERS gRPC watchers at 60 Hz," \
+  "$WEB_WATCHERS gateway watchers at $WEB_RATE Hz; $SECONDS_RUN s of load"
 rss0=$(rss) fds0=$(fds)
 c0=$(counters)
 sleep $((SECONDS_RUN / 4))
@@ -95,10 +117,25 @@ echo "  $(period) (cumulative, at the end of the floor)"
 
 "${ctl[@]}" record start --name load >/dev/null 2>&1
 for w in $(seq 1 "$WATCHERS"); do
-  timeout "$((SECONDS_RUN + 5))" "${ctl[@]}" watch --rate 60 --json --positions \
-    >"$data/watch-$w.jsonl" 2>/dev/null &
+  # Only each frame's start and its dropped_frames are kept (a frame's JSON is ~60 kB: a 10-minute
+  # soak's would fill the disk). grep ends, flushing, when the watcher does: after S seconds,
+  # like the gateway's watchers, so frames per second compare.
+  timeout "$SECONDS_RUN" "${ctl[@]}" watch --rate 60 --json --positions 2>/dev/null \
+    > >(grep -oE '^\{|"dropped_frames": *"?[0-9]+' >"$data/watch-$w.txt") &
   PIDS+=($!)
 done
+if [ "$WEB_WATCHERS" -gt 0 ]; then
+  "$WEB_WATCH" --port "$web_port" --token-file "$data/admin.token" --viewers "$WEB_WATCHERS" \
+    --rate "$WEB_RATE" --seconds "$SECONDS_RUN" >"$data/web.txt" 2>&1 &
+  WEB_PID=$!
+fi
+if [ "$SAMPLE" -gt 0 ]; then
+  ( while :; do
+      echo "$(date +%s.%N) $(rss) $(fds)" >>"$data/samples"
+      sleep "$SAMPLE"
+    done ) &
+  PIDS+=($!)
+fi
 ( n=0; while :; do
     "${ctl[@]}" object create samples/heart.json --name "job $n" --resolution 0.012 >/dev/null 2>&1 &&
       echo ok >>"$data/jobs" || echo failed >>"$data/jobs"
@@ -116,23 +153,33 @@ PIDS+=($!)
   done ) &
 PIDS+=($!)
 sleep "$SECONDS_RUN"
+[ "$SAMPLE" -gt 0 ] && echo "$(date +%s.%N) $(rss) $(fds)" >>"$data/samples"
 c2=$(counters)
 report load "$c1" "$c2"
 echo "  $(period) (cumulative, at the end of the load)"
 json=$("${ctl[@]}" record stop --json 2>/dev/null || true)
 rss1=$(rss) fds1=$(fds)
 for p in "${PIDS[@]:1}"; do kill "$p" 2>/dev/null || true; done
+[ -n "${WEB_PID:-}" ] && { wait "$WEB_PID" || true; }
 sleep 1
-frames=() drops=()
+summary() {  # label asked-Hz, then "frames dropped" lines on stdin
+  sort -n | awk -v label="$1" -v hz="$2" -v s="$SECONDS_RUN" '{a[NR] = $1; d += $2} END {
+    if (!NR) { printf "%s: none\n", label; exit }
+    m = a[int((NR + 1) / 2)];
+    printf "%s (%d, %d Hz asked): frames each min %d, median %d, max %d (%.1f/s at the median);", \
+      label, NR, hz, a[1], m, a[NR], m / s;
+    printf " %d frames skipped for them in all (slow client skips)\n", d }'
+}
 for w in $(seq 1 "$WATCHERS"); do
-  frames+=($(wc -l <"$data/watch-$w.jsonl"))
-  drops+=($( (grep -o '"dropped_frames": *"*[0-9]*' "$data/watch-$w.jsonl" || true) |
-    grep -o '[0-9]*$' | awk '{s += $1} END {print s + 0}'))
-done
-printf '%s\n' "${frames[@]}" | sort -n | awk -v s="$SECONDS_RUN" '{a[NR] = $1} END {
-  printf "watchers: frames each min %d, median %d, max %d (%.1f/s at the median)\n",
-    a[1], a[int((NR + 1) / 2)], a[NR], a[int((NR + 1) / 2)] / s }'
-printf '%s\n' "${drops[@]}" | awk '{s += $1} END {printf "dropped frames (slow client skips): %d in all\n", s}'
+  f="$data/watch-$w.txt"
+  echo "$(grep -c '^{' "$f" || true) $(grep -o '[0-9]*$' "$f" | awk '{s += $1} END {print s + 0}')"
+done | summary "gRPC watchers" 60
+if [ "$WEB_WATCHERS" -gt 0 ]; then
+  sed -n 's/^viewer [0-9]*: \([0-9]*\) frames, \([0-9]*\) dropped.*/\1 \2/p' "$data/web.txt" |
+    summary "gateway watchers" "$WEB_RATE"
+  ended=$(grep -c 'ended:' "$data/web.txt" || true)
+  [ "$ended" -eq 0 ] || { echo "  $ended gateway watcher(s) ended early:"; grep 'ended:' "$data/web.txt" | head -3; }
+fi
 num() { { grep -o "\"$1\": *\"*[0-9]*" || true; } | grep -o '[0-9]*$' | head -1 | awk '{print $1 + 0} END {if (!NR) print 0}'; }
 echo "recording: $(echo "$json" | num dropped_ticks) ticks dropped, $(echo "$json" | num dropped_events)" \
   "events dropped, $(echo "$json" | num bytes) bytes"
@@ -140,4 +187,19 @@ count() { grep -c "$1" "$2" 2>/dev/null || true; }
 echo "jobs: $(count ok "$data/jobs") stored, $(count failed "$data/jobs") failed;" \
   "parameter changes: $(count ok "$data/params") taken, $(count failed "$data/params") refused"
 echo "rheod RSS ${rss0} -> ${rss1} kB; open descriptors ${fds0} -> ${fds1}"
+if [ "$SAMPLE" -gt 0 ]; then
+  # Least squares over the samples: RSS [MB] and descriptors against time [min].
+  awk -v every="$SAMPLE" 'NR == 1 {t0 = $1} {
+      t = ($1 - t0) / 60; r = $2 / 1024; f = $3; n++
+      st += t; stt += t * t; sr += r; str += t * r; sf += f; stf += t * f
+      if (n == 1) {r1 = r; f1 = f} rl = r; fl = f; tl = t
+      if (n == 1 || r > rmax) rmax = r
+    } END {
+      d = n * stt - st * st; if (d <= 0) d = 1
+      printf "soak: %d samples every %d s over %.1f min\n", n, every, tl
+      printf "  RSS first %.1f MB, last %.1f MB, max %.1f MB; slope %+.3f MB/min\n", r1, rl, rmax,
+        (n * str - st * sr) / d
+      printf "  open descriptors first %d, last %d; slope %+.3f fds/min\n", f1, fl, (n * stf - st * sf) / d
+    }' "$data/samples"
+fi
 rm -rf "$data"
