@@ -37,6 +37,9 @@ def pragma_loops(path):
         if not line.strip().startswith("#pragma omp simd"):
             continue
         start = i + 1  # 0-based index of the `for`
+        if lines[start].split("//", 1)[0].rstrip().endswith(";"):
+            out.append((start + 1, start + 1))  # a one-line loop: no braces to match
+            continue
         depth, end, opened = 0, start, False
         for n in range(start, len(lines)):
             code = lines[n].split("//", 1)[0]
