@@ -292,12 +292,15 @@ TEST_P(RheodTable, EveryMethodEveryFieldAtItsWorstGetsAClearShortAnswer) {
   std::printf("--device %s: %d methods, %d cases;%s\n", GetParam(), methods, cases,
               codes.str().c_str());
   // Still running, still at rate.
-  const double after = LoopTickRate(d, 3s);
-  // A sanitizer build's loop runs far below its rate (about 150 ticks/s, moving with the other
-  // tests on the two cores): there the check is that it still runs near what it did.
-  const double keep = kSanitizerBuild ? 0.5 : 0.97;
+  std::string detail;
+  const double after = LoopTickRate(d, 3s, &detail);
+  // The loop keeps running near the rate it had: a handler that wedged or starved it would take
+  // it far below. Not a timing target: the loop skips the ticks it is late for, and the old
+  // bound (97 %) left no room for the other tests sharing CI's two cores (a sanitizer build's
+  // loop runs at about 150 ticks/s, moving more).
+  const double keep = kSanitizerBuild ? 0.5 : 0.75;
   EXPECT_TRUE(after >= 990.0 || after >= keep * before)
-      << "before " << before << " ticks/s, after " << after;
+      << "before " << before << " ticks/s, after " << after << " (" << detail << ")";
   EXPECT_EQ(d.WaitForExit(0ms), -1) << "rheod exited: " << d.log();
 }
 
