@@ -112,35 +112,44 @@ int Sketched(const std::string& sample, int max_tets) {
       "1 cm of the top. One thread.\n# Bullet: btSoftBody on the same tetrahedra, same dt, 4 "
       "position iterations, kLST 1.\n",
       sample.c_str(), ticks);
-  std::printf("%-6s %7s %8s %9s %9s %9s %9s %8s %8s %8s %10s %7s %10s %7s\n", "scene", "tets",
-              "res_mm", "med_us", "p99_us", "max_us", "us/1ktet", "cg_mean", "cg_max", "restores",
-              "bullet_us", "ratio", "bullet2_us", "ratio2");
+  std::printf("%-6s %-6s %7s %8s %9s %9s %9s %9s %8s %8s %8s %10s %7s %10s %7s\n", "scene",
+              "precon", "tets", "res_mm", "med_us", "p99_us", "max_us", "us/1ktet", "cg_mean",
+              "cg_max", "restores", "bullet_us", "ratio", "bullet2_us", "ratio2");
   for (size_t mi = 0; mi < meshes->meshes.size(); ++mi) {
     const TetMesh& mesh = meshes->meshes[mi];
     Parameters p = FindPreset("organ")->params;
     p.sleep_time = 0.0;  // measured while it moves, never asleep
-    for (const Scene& sc : {Scene{"drop", mesh, p, 0.02, 0.0}, Scene{"press", mesh, p, 0.0, 3.0}}) {
-      const Tick t = RunRheo(sc, ticks);
-      const double med = Median(t.us);
-      const size_t tets = sc.mesh.tets.size();
+    for (const Scene& base :
+         {Scene{"drop", mesh, p, 0.02, 0.0}, Scene{"press", mesh, p, 0.0, 3.0}}) {
+      const size_t tets = base.mesh.tets.size();
       double bullet = 0.0, bullet_bend = 0.0;
 #ifdef RHEO_HAVE_BULLET
-      bullet = Median(RunBullet(sc, 1e-3, ticks * 1e-3, 1.0, 0).tick_us);
-      bullet_bend = Median(RunBullet(sc, 1e-3, ticks * 1e-3, 1.0, 2).tick_us);
+      bullet = Median(RunBullet(base, 1e-3, ticks * 1e-3, 1.0, 0).tick_us);
+      bullet_bend = Median(RunBullet(base, 1e-3, ticks * 1e-3, 1.0, 2).tick_us);
 #endif
-      std::printf(
-          "%-6s %7zu %8.2f %9.1f %9.1f %9.1f %9.1f %8.2f %8.0f %8lld %10.1f %7.2f %10.1f %7.2f\n",
-          sc.name, tets, meshes->resolution[mi] * 1e3, med, Percentile(t.us, 0.99),
-          *std::max_element(t.us.begin(), t.us.end()), med / (tets / 1000.0),
-          t.substeps > 0 ? double(t.iterations) / t.substeps : 0.0, t.max_iterations,
-          static_cast<long long>(t.restores), bullet, bullet / med, bullet_bend, bullet_bend / med);
-      std::fflush(stdout);
+      // Both of the implicit integrator's CG preconditioners, one after the other.
+      for (double pc : {0.0, 1.0}) {
+        Scene sc = base;
+        sc.params.cg_preconditioner = pc;
+        const Tick t = RunRheo(sc, ticks);
+        const double med = Median(t.us);
+        std::printf(
+            "%-6s %-6s %7zu %8.2f %9.1f %9.1f %9.1f %9.1f %8.2f %8.0f %8lld %10.1f %7.2f %10.1f "
+            "%7.2f\n",
+            sc.name, pc > 0.5 ? "block" : "jacobi", tets, meshes->resolution[mi] * 1e3, med,
+            Percentile(t.us, 0.99), *std::max_element(t.us.begin(), t.us.end()),
+            med / (tets / 1000.0), t.substeps > 0 ? double(t.iterations) / t.substeps : 0.0,
+            t.max_iterations, static_cast<long long>(t.restores), bullet, bullet / med,
+            bullet_bend, bullet_bend / med);
+        std::fflush(stdout);
+      }
     }
   }
   std::printf(
       "# ratio = Bullet's median step / Rheo's median tick (> 1: Rheo faster); bullet: the "
       "tetrahedra's links only;\n# bullet2: plus bending links two apart (sim_bench bullet's "
-      "setting). cg = CG iterations per substep.\n");
+      "setting). cg = CG iterations per substep;\n# precon: the CG's preconditioner "
+      "(cg_preconditioner 0 = jacobi, 1 = block: 3x3 block Jacobi; jacobi is the default).\n");
   return 0;
 }
 

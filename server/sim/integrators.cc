@@ -125,6 +125,153 @@ RHEO_SIM_KERNEL void CgStart(size_t n3, const double* r, const double* inv_diag,
   *r2_out = r2;
 }
 
+// The block Jacobi forms of CgUpdate and CgStart: z = P r with P each node's inverted 3x3 block
+// (State::pre_block, six arrays of n); `mask` is nonzero on the unknowns (r . r leaves the rest
+// out, as above).
+RHEO_SIM_KERNEL void CgUpdateBlock(size_t n, double alpha, const double* p, const double* q,
+                                   const double* P, const double* mask, double* dv, double* r,
+                                   double* z, double* rz_out, double* r2_out) {
+  const double *xx = P, *yy = P + n, *zz = P + 2 * n, *xy = P + 3 * n, *xz = P + 4 * n,
+               *yz = P + 5 * n;
+  double rz = 0.0, r2 = 0.0;
+#pragma omp simd reduction(+ : rz, r2)
+  for (size_t i = 0; i < n; ++i) {
+    const size_t k = 3 * i;
+    dv[k] += alpha * p[k];
+    dv[k + 1] += alpha * p[k + 1];
+    dv[k + 2] += alpha * p[k + 2];
+    const double r0 = r[k] - alpha * q[k], r1 = r[k + 1] - alpha * q[k + 1],
+                 r2i = r[k + 2] - alpha * q[k + 2];
+    r[k] = r0;
+    r[k + 1] = r1;
+    r[k + 2] = r2i;
+    const double z0 = xx[i] * r0 + xy[i] * r1 + xz[i] * r2i;
+    const double z1 = xy[i] * r0 + yy[i] * r1 + yz[i] * r2i;
+    const double z2 = xz[i] * r0 + yz[i] * r1 + zz[i] * r2i;
+    z[k] = z0;
+    z[k + 1] = z1;
+    z[k + 2] = z2;
+    rz += r0 * z0 + r1 * z1 + r2i * z2;
+    r2 += (mask[k] != 0.0 ? r0 * r0 : 0.0) + (mask[k + 1] != 0.0 ? r1 * r1 : 0.0) +
+          (mask[k + 2] != 0.0 ? r2i * r2i : 0.0);
+  }
+  *rz_out = rz;
+  *r2_out = r2;
+}
+
+RHEO_SIM_KERNEL void CgStartBlock(size_t n, const double* r, const double* P, const double* mask,
+                                  double* z, double* p, double* rz_out, double* r2_out) {
+  const double *xx = P, *yy = P + n, *zz = P + 2 * n, *xy = P + 3 * n, *xz = P + 4 * n,
+               *yz = P + 5 * n;
+  double rz = 0.0, r2 = 0.0;
+#pragma omp simd reduction(+ : rz, r2)
+  for (size_t i = 0; i < n; ++i) {
+    const size_t k = 3 * i;
+    const double r0 = r[k], r1 = r[k + 1], r2i = r[k + 2];
+    const double z0 = xx[i] * r0 + xy[i] * r1 + xz[i] * r2i;
+    const double z1 = xy[i] * r0 + yy[i] * r1 + yz[i] * r2i;
+    const double z2 = xz[i] * r0 + yz[i] * r1 + zz[i] * r2i;
+    z[k] = p[k] = z0;
+    z[k + 1] = p[k + 1] = z1;
+    z[k + 2] = p[k + 2] = z2;
+    rz += r0 * z0 + r1 * z1 + r2i * z2;
+    r2 += (mask[k] != 0.0 ? r0 * r0 : 0.0) + (mask[k + 1] != 0.0 ? r1 * r1 : 0.0) +
+          (mask[k + 2] != 0.0 ? r2i * r2i : 0.0);
+  }
+  *rz_out = rz;
+  *r2_out = r2;
+}
+
+// Each node's 3x3 block of the system A = M + hh D + hh^2 K (+ the tool's springs), inverted into
+// State::pre_block: the masses (with the tool's springs times `spring_h2`), the edges' blocks (K_e + D_e to
+// both ends), the shape springs' Gauss-Newton blocks sigma w w^T at each corner, and the volume
+// term's beta g g^T. `mask` (3n) is 1 on the unknowns and 0 on the coordinates the floor holds;
+// those leave the block (their rows and columns of the inverse are 0), as do fixed nodes.
+void BlockJacobi(const Model& m, const ActiveTerms& jac, State& s, double spring_h2, double beta,
+                 const double* mask) {
+  const size_t n = static_cast<size_t>(m.num_nodes);
+  double* B = s.pre_block.data();
+  double *xx = B, *yy = B + n, *zz = B + 2 * n, *xy = B + 3 * n, *xz = B + 4 * n, *yz = B + 5 * n;
+  for (size_t i = 0; i < n; ++i) {
+    xx[i] = yy[i] = zz[i] = m.mass[i] + (spring_h2 > 0.0 ? spring_h2 * s.k_ext[i] : 0.0);
+    xy[i] = xz[i] = yz[i] = 0.0;
+  }
+  // Adds sym(a e e^T) + l I to node i's block.
+  auto add = [&](size_t i, double a, double l, double ex, double ey, double ez) {
+    xx[i] += a * ex * ex + l;
+    yy[i] += a * ey * ey + l;
+    zz[i] += a * ez * ez + l;
+    xy[i] += a * ex * ey;
+    xz[i] += a * ex * ez;
+    yz[i] += a * ey * ez;
+  };
+  if (jac.edges) {
+    const size_t ne = m.edges.size();
+    for (size_t k = 0; k < ne; ++k) {
+      const double axial = s.edge_axial_k[k] - s.edge_lateral[k] + s.edge_axial_c[k];
+      const double lat = s.edge_lateral[k];
+      const double ex = s.edge_ex[k], ey = s.edge_ey[k], ez = s.edge_ez[k];
+      add(static_cast<size_t>(m.edges[k][0]), axial, lat, ex, ey, ez);
+      add(static_cast<size_t>(m.edges[k][1]), axial, lat, ex, ey, ez);
+    }
+  }
+  if (jac.tet_volume) {
+    const size_t nt = m.tets.size();
+    for (size_t t = 0; t < nt; ++t) {
+      const double coef = s.tet_coef[t];
+      if (coef == 0.0) continue;
+      const float* w = &s.tet_w[12 * t];
+      for (int c = 0; c < 4; ++c)
+        add(static_cast<size_t>(m.tets[t][c]), coef, 0.0, w[3 * c], w[3 * c + 1], w[3 * c + 2]);
+    }
+  }
+  if (jac.area) {
+    const size_t nf = m.faces.size();
+    for (size_t f = 0; f < nf; ++f) {
+      for (int c = 0; c < 3; ++c) {
+        const Vec3& w = s.shape_dir[3 * f + c];
+        add(static_cast<size_t>(m.faces[f][c]), s.shape_coef[f], 0.0, w.x(), w.y(), w.z());
+      }
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    if (beta > 0.0) {
+      const Vec3& g = s.vol_grad[i];
+      add(i, beta, 0.0, g.x(), g.y(), g.z());
+    }
+    if (m.fixed[i]) {
+      xx[i] = yy[i] = zz[i] = xy[i] = xz[i] = yz[i] = 0.0;
+      continue;
+    }
+    // A held coordinate leaves the block: its row and column are cleared and its diagonal set to
+    // 1 for the inversion, then to 0.
+    const bool hx = mask[3 * i] == 0.0, hy = mask[3 * i + 1] == 0.0, hz = mask[3 * i + 2] == 0.0;
+    double a = xx[i], b = xy[i], c = xz[i], d = yy[i], e = yz[i], f = zz[i];
+    if (hx) a = 1.0, b = c = 0.0;
+    if (hy) d = 1.0, b = e = 0.0;
+    if (hz) f = 1.0, c = e = 0.0;
+    // The symmetric inverse by cofactors.
+    const double A = d * f - e * e, Bc = c * e - b * f, C = b * e - c * d;
+    const double D = a * f - c * c, E = b * c - a * e, F = a * d - b * b;
+    const double det = a * A + b * Bc + c * C;
+    if (!(det > 1e-12 * a * d * f) || !std::isfinite(det)) {
+      // Not positive definite in floating point (never seen; a safeguard): the diagonal alone.
+      xx[i] = hx ? 0.0 : 1.0 / a;
+      yy[i] = hy ? 0.0 : 1.0 / d;
+      zz[i] = hz ? 0.0 : 1.0 / f;
+      xy[i] = xz[i] = yz[i] = 0.0;
+      continue;
+    }
+    const double inv = 1.0 / det;
+    xx[i] = hx ? 0.0 : A * inv;
+    yy[i] = hy ? 0.0 : D * inv;
+    zz[i] = hz ? 0.0 : F * inv;
+    xy[i] = Bc * inv;
+    xz[i] = C * inv;
+    yz[i] = E * inv;
+  }
+}
+
 // p = z + beta p.
 RHEO_SIM_KERNEL void CgDirection(size_t n3, double beta, const double* z, double* p) {
 #pragma omp simd
@@ -244,8 +391,15 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     }
   }
   s.have_prev_shape = shape_explicit;
-  // Jacobi preconditioner from the diagonal of the system (mass + trace/3 of each block; the edge
-  // kernel added the edges' share), kept as its inverse, 0 on fixed nodes (dv = 0 there).
+  // The preconditioner. Block Jacobi (cg_preconditioner 1): each node's 3x3 block of the system,
+  // inverted (BlockJacobi). Jacobi (0): the diagonal of the system (mass + trace/3 of each edge
+  // block; the edge kernel added the edges' share), kept as its inverse, 0 on fixed nodes (dv = 0
+  // there). inv_diag3 is both ways the mask of the unknowns.
+  const bool block = p.cg_preconditioner > 0.5;
+  if (block) {
+    BlockJacobi(m, jac, s, springs ? hh * hh : 0.0,
+                jac.global_volume ? s.global_k + s.global_c : 0.0, s.inv_diag3.data());
+  }
   const double beta_v = jac.global_volume ? (s.global_k + s.global_c) / 3.0 : 0.0;
   for (int32_t i = 0; i < n; ++i) {
     const double d = s.diag[i] + beta_v * s.vol_grad[i].squaredNorm();
@@ -295,7 +449,11 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     const bool near_rest = p.sleep_time > 0.0 && v_max2 < 100.0 * p.sleep_speed * p.sleep_speed;
     const int max_it = static_cast<int>(p.cg_max_iterations);
     double rz = 0.0, r2 = 0.0;
-    CgStart(n3, flat(s.cg_r), s.inv_diag3.data(), flat(s.cg_z), flat(s.cg_p), &rz, &r2);
+    if (block)
+      CgStartBlock(static_cast<size_t>(n), flat(s.cg_r), s.pre_block.data(), s.inv_diag3.data(),
+                   flat(s.cg_z), flat(s.cg_p), &rz, &r2);
+    else
+      CgStart(n3, flat(s.cg_r), s.inv_diag3.data(), flat(s.cg_z), flat(s.cg_p), &rz, &r2);
     double r_norm = std::sqrt(r2);
     // With the floor in the solve, its prescribed changes are part of the right-hand side: they
     // reach the neighbours through A (mostly h D, the edge dampers, far heavier than the node
@@ -312,8 +470,12 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
       if (!(pq > 0.0)) break;
       const double alpha = rz / pq;
       double rz_next = 0.0;
-      CgUpdate(n3, alpha, flat(s.cg_p), flat(s.cg_q), s.inv_diag3.data(), flat(s.dv), flat(s.cg_r),
-               flat(s.cg_z), &rz_next, &r2);
+      if (block)
+        CgUpdateBlock(static_cast<size_t>(n), alpha, flat(s.cg_p), flat(s.cg_q), s.pre_block.data(),
+                      s.inv_diag3.data(), flat(s.dv), flat(s.cg_r), flat(s.cg_z), &rz_next, &r2);
+      else
+        CgUpdate(n3, alpha, flat(s.cg_p), flat(s.cg_q), s.inv_diag3.data(), flat(s.dv),
+                 flat(s.cg_r), flat(s.cg_z), &rz_next, &r2);
       const double beta = rz_next / rz;
       rz = rz_next;
       CgDirection(n3, beta, flat(s.cg_z), flat(s.cg_p));

@@ -11,7 +11,7 @@ namespace {
 
 using P = Parameters;
 
-constexpr std::array<ParameterInfo, 25> kTable = {{
+constexpr std::array<ParameterInfo, 26> kTable = {{
     {"density", &P::density, 1.0, 1e5, "kg/m^3", "material density (lumped masses)"},
     {"k_v", &P::k_v, 0.0, 1e7, "N/m", "Voigt spring elasticity per edge (eq. 2)"},
     {"c_v", &P::c_v, 1e-6, 1e6, "N s/m", "Voigt damper viscosity per edge (eq. 2)"},
@@ -37,6 +37,8 @@ constexpr std::array<ParameterInfo, 25> kTable = {{
      "1 = backward Euler, 2 = BDF2 for the implicit integrator"},
     {"cg_tolerance", &P::cg_tolerance, 1e-14, 1.0, "-", "relative CG residual to stop at"},
     {"cg_max_iterations", &P::cg_max_iterations, 1.0, 10000.0, "-", "CG iteration cap"},
+    {"cg_preconditioner", &P::cg_preconditioner, 0.0, 1.0, "-",
+     "0 = Jacobi, 1 = 3x3 block Jacobi for the implicit integrator's CG"},
     {"max_speed", &P::max_speed, 1e-3, 1e5, "m/s", "node speed treated as an explosion"},
     {"sleep_speed", &P::sleep_speed, 0.0, 1.0, "m/s", "speed under which nodes are at rest"},
     {"sleep_time", &P::sleep_time, 0.0, 1e6, "s", "rest time before sleeping (0: never)"},

@@ -60,6 +60,9 @@ struct Parameters {
   double implicit_order = 2;      // 1: backward Euler; 2: BDF2 (second order) [-]
   double cg_tolerance = 5e-3;     // relative residual at which CG stops [-] (sim_bench cg)
   double cg_max_iterations = 60;  // [-]
+  double cg_preconditioner = 0;   // 0: Jacobi (the system's diagonal); 1: 3x3 block Jacobi (each
+                                  // node's block: 20 % fewer CG iterations, no faster overall on
+                                  // the sketched bean, bench/sim/results/sketched.txt) [-]
   double max_speed = 100.0;       // a node faster than this is an explosion [m/s]
   double sleep_speed = 1e-4;      // below this for sleep_time every node is at rest [m/s]
   double sleep_time = 0.5;        // [s]; 0 disables sleeping

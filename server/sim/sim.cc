@@ -75,6 +75,7 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
   s.floor_impulse.assign(n, Vec3::Zero());
   s.floor_stick.assign(n, 0);
   for (auto* vec : {&s.inv_diag3, &s.mass3, &s.keep3, &s.sys_mass3}) vec->assign(3 * n, 0.0);
+  s.pre_block.assign(6 * static_cast<size_t>(n), 0.0);
   s.good_x = s.x;
   s.good_v = s.v;
   s.good_a = s.a;

@@ -64,6 +64,10 @@ struct State {
   std::vector<Vec3> dv_prev;  // dv one substep back (n) [m/s]
   std::vector<double> diag;   // diagonal of the implicit system, for its preconditioner (n) [kg]
   std::vector<double> inv_diag3;  // its inverse, 0 on fixed nodes, per coordinate (3n) [1/kg]
+  // The 3x3 block Jacobi preconditioner (Parameters::cg_preconditioner): each node's block of
+  // the system inverted, symmetric, as six arrays of n (xx, yy, zz, xy, xz, yz) [1/kg]; zero on
+  // fixed nodes and in the rows and columns of the coordinates the floor holds.
+  std::vector<double> pre_block;
   std::vector<double> mass3;      // node masses per coordinate (3n) [kg]
   std::vector<double> keep3;      // 1 per coordinate of a free node, 0 of a fixed one (3n)
   // The floor inside the implicit solve: per node, the impulse the floor gave it in the last
