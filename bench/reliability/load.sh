@@ -5,7 +5,7 @@
 #   - W frame watchers (rheoctl watch, gRPC, 60 frames/s with positions, JSON);
 #   - V studio viewers through the gateway's WebSocket (bench/web/web_watchers: the studio's own
 #     request, 30 frames/s with 16-bit positions, JSON), as V browser tabs of /?view would be;
-#   - a mesh job every 2 s (the heart at 12 mm, stored);
+#   - a mesh job every 2 s (the heart at 12 mm, stored; --job-every J: every J s, 0 = none);
 #   - a parameter change every 100 ms (k_v between two values; a rheoctl process each, so the
 #     clients' own start-up shares the machine too);
 #   - a recording of it all (60 frames/s).
@@ -18,7 +18,7 @@
 # descriptors every N seconds of the load and prints their least-squares slopes (MB/min, fds/min)
 # with the first and last samples.
 #   bench/reliability/load.sh [--build DIR] [--seconds S] [--watchers W] [--web-watchers V]
-#                             [--sample N] [--resolution M]
+#                             [--sample N] [--resolution M] [--job-every J]
 # (bench/web/viewers_bench measures the gateway's viewers alone.)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -29,7 +29,8 @@ WEB_WATCHERS=16
 WEB_RATE=30
 SAMPLE=0
 RESOLUTION=0.006
-usage="usage: $0 [--build DIR] [--seconds S] [--watchers W] [--web-watchers V] [--sample N] [--resolution M]"
+JOB_EVERY=2
+usage="usage: $0 [--build DIR] [--seconds S] [--watchers W] [--web-watchers V] [--sample N] [--resolution M] [--job-every J]"
 int() {  # option value: a whole number >= $3
   [[ "$2" =~ ^[0-9]+$ ]] && [ "$2" -ge "$3" ] || { echo "$1: '$2' is not a whole number >= $3" >&2; exit 2; }
 }
@@ -42,6 +43,7 @@ while [ $# -gt 0 ]; do
     --web-watchers) int "$1" "$2" 0; WEB_WATCHERS=$2 ;;
     --sample) int "$1" "$2" 1; SAMPLE=$2 ;;
     --resolution) RESOLUTION=$2 ;;
+    --job-every) int "$1" "$2" 0; JOB_EVERY=$2 ;;
     *) echo "$usage" >&2; exit 2 ;;
   esac
   shift 2
@@ -136,13 +138,14 @@ if [ "$SAMPLE" -gt 0 ]; then
     done ) &
   PIDS+=($!)
 fi
-( n=0; while :; do
+# --job-every 0: no jobs (a soak's control: does the RSS slope follow the stored designs?).
+[ "$JOB_EVERY" -gt 0 ] && ( n=0; while :; do
     "${ctl[@]}" object create samples/heart.json --name "job $n" --resolution 0.012 >/dev/null 2>&1 &&
       echo ok >>"$data/jobs" || echo failed >>"$data/jobs"
     n=$((n + 1))
-    sleep 2
+    sleep "$JOB_EVERY"
   done ) &
-PIDS+=($!)
+[ "$JOB_EVERY" -gt 0 ] && PIDS+=($!)
 ( v=0; while :; do
     k=$((400 + 100 * (v % 2)))
     # Not waited for: each change is its own rheoctl process, started every 100 ms.
@@ -183,7 +186,7 @@ fi
 num() { { grep -o "\"$1\": *\"*[0-9]*" || true; } | grep -o '[0-9]*$' | head -1 | awk '{print $1 + 0} END {if (!NR) print 0}'; }
 echo "recording: $(echo "$json" | num dropped_ticks) ticks dropped, $(echo "$json" | num dropped_events)" \
   "events dropped, $(echo "$json" | num bytes) bytes"
-count() { grep -c "$1" "$2" 2>/dev/null || true; }
+count() { [ -f "$2" ] || { echo 0; return; }; grep -c "$1" "$2" || true; }
 echo "jobs: $(count ok "$data/jobs") stored, $(count failed "$data/jobs") failed;" \
   "parameter changes: $(count ok "$data/params") taken, $(count failed "$data/params") refused"
 echo "rheod RSS ${rss0} -> ${rss1} kB; open descriptors ${fds0} -> ${fds1}"
