@@ -139,8 +139,8 @@ int Sketched(const std::string& sample, int max_tets) {
             sc.name, pc > 0.5 ? "block" : "jacobi", tets, meshes->resolution[mi] * 1e3, med,
             Percentile(t.us, 0.99), *std::max_element(t.us.begin(), t.us.end()),
             med / (tets / 1000.0), t.substeps > 0 ? double(t.iterations) / t.substeps : 0.0,
-            t.max_iterations, static_cast<long long>(t.restores), bullet, bullet / med,
-            bullet_bend, bullet_bend / med);
+            t.max_iterations, static_cast<long long>(t.restores), bullet, bullet / med, bullet_bend,
+            bullet_bend / med);
         std::fflush(stdout);
       }
     }

@@ -183,10 +183,10 @@ RHEO_SIM_KERNEL void CgStartBlock(size_t n, const double* r, const double* P, co
 }
 
 // Each node's 3x3 block of the system A = M + hh D + hh^2 K (+ the tool's springs), inverted into
-// State::pre_block: the masses (with the tool's springs times `spring_h2`), the edges' blocks (K_e + D_e to
-// both ends), the shape springs' Gauss-Newton blocks sigma w w^T at each corner, and the volume
-// term's beta g g^T. `mask` (3n) is 1 on the unknowns and 0 on the coordinates the floor holds;
-// those leave the block (their rows and columns of the inverse are 0), as do fixed nodes.
+// State::pre_block: the masses (with the tool's springs times `spring_h2`), the edges' blocks (K_e
+// + D_e to both ends), the shape springs' Gauss-Newton blocks sigma w w^T at each corner, and the
+// volume term's beta g g^T. `mask` (3n) is 1 on the unknowns and 0 on the coordinates the floor
+// holds; those leave the block (their rows and columns of the inverse are 0), as do fixed nodes.
 void BlockJacobi(const Model& m, const ActiveTerms& jac, State& s, double spring_h2, double beta,
                  const double* mask) {
   const size_t n = static_cast<size_t>(m.num_nodes);

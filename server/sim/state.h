@@ -68,8 +68,8 @@ struct State {
   // the system inverted, symmetric, as six arrays of n (xx, yy, zz, xy, xz, yz) [1/kg]; zero on
   // fixed nodes and in the rows and columns of the coordinates the floor holds.
   std::vector<double> pre_block;
-  std::vector<double> mass3;      // node masses per coordinate (3n) [kg]
-  std::vector<double> keep3;      // 1 per coordinate of a free node, 0 of a fixed one (3n)
+  std::vector<double> mass3;  // node masses per coordinate (3n) [kg]
+  std::vector<double> keep3;  // 1 per coordinate of a free node, 0 of a fixed one (3n)
   // The floor inside the implicit solve: per node, the impulse the floor gave it in the last
   // substep's solve (zero where the floor took no part; y > 0 keeps it held in the next one; x
   // and z are the static friction of a sticking node) (n) [N s]; floor_stick: 1 where the node
