@@ -139,13 +139,15 @@ if [ "$SAMPLE" -gt 0 ]; then
   PIDS+=($!)
 fi
 # --job-every 0: no jobs (a soak's control: does the RSS slope follow the stored designs?).
-[ "$JOB_EVERY" -gt 0 ] && ( n=0; while :; do
-    "${ctl[@]}" object create samples/heart.json --name "job $n" --resolution 0.012 >/dev/null 2>&1 &&
-      echo ok >>"$data/jobs" || echo failed >>"$data/jobs"
-    n=$((n + 1))
-    sleep "$JOB_EVERY"
-  done ) &
-[ "$JOB_EVERY" -gt 0 ] && PIDS+=($!)
+if [ "$JOB_EVERY" -gt 0 ]; then
+  ( n=0; while :; do
+      "${ctl[@]}" object create samples/heart.json --name "job $n" --resolution 0.012 >/dev/null 2>&1 &&
+        echo ok >>"$data/jobs" || echo failed >>"$data/jobs"
+      n=$((n + 1))
+      sleep "$JOB_EVERY"
+    done ) &
+  PIDS+=($!)
+fi
 ( v=0; while :; do
     k=$((400 + 100 * (v % 2)))
     # Not waited for: each change is its own rheoctl process, started every 100 ms.
