@@ -51,7 +51,8 @@ std::unique_ptr<ByteTransport> LineReopener::Take() {
 LineStats LineReopener::stats() const {
   LineStats s;
   s.losses = losses_.load(std::memory_order_relaxed);
-  s.attempts = attempts_.load(std::memory_order_relaxed);
+  s.attempts = attempts_.load(std::memory_order_acquire);
+  s.last_attempt_ns = last_attempt_ns_.load(std::memory_order_relaxed);
   s.reopens = reopens_.load(std::memory_order_relaxed);
   s.backoff_ns = backoff_ns_.load(std::memory_order_relaxed);
   s.down_since_ns = down_since_ns_.load(std::memory_order_relaxed);
@@ -88,7 +89,9 @@ void LineReopener::Run() {
     for (int attempt = 1;; ++attempt) {
       backoff_ns_.store(backoff, std::memory_order_relaxed);
       if (!Sleep(backoff)) return;
-      attempts_.fetch_add(1, std::memory_order_relaxed);
+      // The time first: a reader that sees the new count sees its time.
+      last_attempt_ns_.store(MonotonicNowNs(), std::memory_order_relaxed);
+      attempts_.fetch_add(1, std::memory_order_release);
       auto line = reopen_();
       if (line.ok()) {
         Say(Format("the serial line is back: reopened at attempt %d, %.2f s after it went away",

@@ -67,6 +67,7 @@ class LineReopener final : public LineSource {
   std::atomic<uint64_t> reopens_{0};
   std::atomic<int64_t> backoff_ns_{0};
   std::atomic<int64_t> down_since_ns_{0};
+  std::atomic<int64_t> last_attempt_ns_{0};
 
   // This thread and the destructor only: the link's thread never touches them.
   mutable std::mutex mutex_;

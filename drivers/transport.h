@@ -25,12 +25,13 @@ class ByteTransport {
 /// A serial line that can go away and come back (a USB serial adapter pulled out and plugged in
 /// again): how it fares, for status.
 struct LineStats {
-  bool up = true;             // the link has a line to talk on
-  uint64_t losses = 0;        // times the line failed as gone (kUnavailable: EIO, hang-up)
-  uint64_t attempts = 0;      // reopens tried (open, raw mode, board identification)
-  uint64_t reopens = 0;       // reopens that worked
-  int64_t backoff_ns = 0;     // wait before the next attempt while the line is away (0 while up)
-  int64_t down_since_ns = 0;  // CLOCK_MONOTONIC when the line went away [ns] (0 while up)
+  bool up = true;               // the link has a line to talk on
+  uint64_t losses = 0;          // times the line failed as gone (kUnavailable: EIO, hang-up)
+  uint64_t attempts = 0;        // reopens tried (open, raw mode, board identification)
+  uint64_t reopens = 0;         // reopens that worked
+  int64_t backoff_ns = 0;       // wait before the next attempt while the line is away (0 while up)
+  int64_t down_since_ns = 0;    // CLOCK_MONOTONIC when the line went away [ns] (0 while up)
+  int64_t last_attempt_ns = 0;  // CLOCK_MONOTONIC when the last reopen was tried [ns] (0: none)
 };
 
 /// Where a link gets a new line when the one it uses has gone away. The link calls these on

@@ -57,21 +57,7 @@ class Rpc {
   };
   Result Wait(uint32_t id, std::chrono::milliseconds timeout = 30s) {
     const auto until = std::chrono::steady_clock::now() + timeout;
-    while (!done_.count(id) && std::chrono::steady_clock::now() < until) {
-      ws::Message m;
-      if (!client_->Read(&m, 200ms)) continue;
-      if (m.binary) {
-        binary_.push_back(m.data);
-        continue;
-      }
-      json j = json::parse(m.data);
-      const uint32_t got = j.value("id", 0u);
-      if (j.contains("status")) {
-        done_[got] = j["status"];
-      } else {
-        messages_[got].push_back(j["message"]);
-      }
-    }
+    while (!done_.count(id) && std::chrono::steady_clock::now() < until) ReadOne();
     Result r;
     r.messages = std::move(messages_[id]);
     messages_.erase(id);
@@ -85,7 +71,33 @@ class Rpc {
   }
   std::vector<std::string>& binary() { return binary_; }
 
+  // Reads until call `id` has `n` messages (kept for Wait) or its status; false on timeout.
+  bool AwaitMessages(uint32_t id, size_t n, std::chrono::milliseconds timeout = 30s) {
+    const auto until = std::chrono::steady_clock::now() + timeout;
+    while (messages_[id].size() < n && !done_.count(id) &&
+           std::chrono::steady_clock::now() < until) {
+      ReadOne();
+    }
+    return messages_[id].size() >= n;
+  }
+
  private:
+  void ReadOne() {
+    ws::Message m;
+    if (!client_->Read(&m, 200ms)) return;
+    if (m.binary) {
+      binary_.push_back(m.data);
+      return;
+    }
+    json j = json::parse(m.data);
+    const uint32_t got = j.value("id", 0u);
+    if (j.contains("status")) {
+      done_[got] = j["status"];
+    } else {
+      messages_[got].push_back(j["message"]);
+    }
+  }
+
   std::unique_ptr<ws::Client> client_;
   std::map<uint32_t, std::vector<json>> messages_;
   std::map<uint32_t, json> done_;
@@ -340,7 +352,8 @@ TEST(RheodWeb, StreamsProgressAndQuantisedFramesAndCancels) {
   ASSERT_EQ(Code(rpc.Call(7, "rheo.v1.SceneService/Control", {{"command", "RUN_COMMAND_RESUME"}})),
             0);
   rpc.Open(8, "rheo.v1.FrameService/WatchFrames", {{"rateHz", 60}});
-  std::this_thread::sleep_for(300ms);
+  // Cancelled once a frame has come (however long a loaded machine takes to send the first).
+  EXPECT_TRUE(rpc.AwaitMessages(8, 1));
   rpc.Send({{"id", 8}, {"cancel", true}});
   auto cancelled = rpc.Wait(8);
   EXPECT_EQ(cancelled.status["name"], "CANCELLED");

@@ -190,6 +190,7 @@ void DeviceLink::Tick(const rt::TickInfo& info, std::span<EngineSlot> slots, Too
   const drivers::LineStats& line = device_->status().line;
   t_.line_losses = line.losses;
   t_.reconnect_attempts = line.attempts;
+  t_.reconnect_attempt_ns = line.last_attempt_ns;
   t_.reconnects = line.reopens;
   t_.reconnect_backoff_s = line.up ? 0.0 : line.backoff_ns * 1e-9;
   t_.disconnected_s = !line.up && line.down_since_ns > 0 ? (done - line.down_since_ns) * 1e-9 : 0.0;

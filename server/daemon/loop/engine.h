@@ -116,9 +116,11 @@ struct ToolTelemetry {
   uint64_t calibration_failures = 0;
   uint64_t input_seq = 0;  // network tool: the last input sequence number the loop used
   // The serial line (SPIDAR-G): times it went away, reopen attempts and reopens since start; the
-  // wait before the next attempt and how long it has been away (both 0 while it is up) [s].
+  // wait before the next attempt and how long it has been away (both 0 while it is up) [s]; when
+  // the last attempt was made (CLOCK_MONOTONIC [ns], 0 before any).
   uint64_t line_losses = 0;
   uint64_t reconnect_attempts = 0;
+  int64_t reconnect_attempt_ns = 0;
   uint64_t reconnects = 0;
   double reconnect_backoff_s = 0.0;
   double disconnected_s = 0.0;
