@@ -19,6 +19,8 @@
 # with the first and last samples.
 #   bench/reliability/load.sh [--build DIR] [--seconds S] [--watchers W] [--web-watchers V]
 #                             [--sample N] [--resolution M] [--job-every J]
+# RHEOD_WRAP="heaptrack -o FILE" (or any command and its arguments) runs rheod under it, to find
+# where a soak's memory goes.
 # (bench/web/viewers_bench measures the gateway's viewers alone.)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -64,7 +66,8 @@ trap cleanup EXIT
 
 data=$(mktemp -d /tmp/rheo-load-XXXXXX)
 log="$data/rheod.log"
-"$RHEOD" --listen 127.0.0.1:0 --http 127.0.0.1:0 --data-dir "$data" --device sim-spidar-g \
+read -r -a wrap <<<"${RHEOD_WRAP:-}"
+"${wrap[@]}" "$RHEOD" --listen 127.0.0.1:0 --http 127.0.0.1:0 --data-dir "$data" --device sim-spidar-g \
   --watchdog-timeout 100 --limit-streams 0 --limit-calls 0 2>"$log" &
 RHEOD_PID=$!
 PIDS=($RHEOD_PID)
@@ -76,9 +79,19 @@ for _ in $(seq 1 400); do
   sleep 0.025
 done
 [ -n "$addr" ] && [ -n "$web_port" ] || { echo "rheod did not start:" >&2; cat "$log" >&2; exit 1; }
+if [ ${#wrap[@]} -gt 0 ]; then  # RSS and descriptors are rheod's, not its wrapper's
+  exe=$(realpath "$RHEOD")
+  for p in $(pgrep -f -- "--data-dir $data"); do
+    [ "$(readlink "/proc/$p/exe" 2>/dev/null)" = "$exe" ] && RHEOD_PID=$p
+  done
+  WRAP_PID=${PIDS[0]}
+  PIDS=($RHEOD_PID "${PIDS[@]}")  # rheod ends first, so the wrapper sees it out
+fi
 ctl=("$RHEOCTL" --server "$addr" --token-file "$data/admin.token")
 rss() { awk '/^VmRSS:/ {print $2}' "/proc/$RHEOD_PID/status"; }
 fds() { ls "/proc/$RHEOD_PID/fd" | wc -l; }
+# The RSS's anonymous and file-backed parts [kB] and the threads (where a slope comes from).
+parts() { awk '/^(Threads|RssAnon|RssFile):/ {printf "%s ", $2}' "/proc/$RHEOD_PID/status"; }
 counters() {  # ticks late overruns skipped
   "${ctl[@]}" status | grep -o 'Hz, [0-9]* ticks, [0-9]* late, [0-9]* overruns, [0-9]* skipped' |
     grep -o '[0-9]*' | paste -sd ' '
@@ -133,7 +146,7 @@ if [ "$WEB_WATCHERS" -gt 0 ]; then
 fi
 if [ "$SAMPLE" -gt 0 ]; then
   ( while :; do
-      echo "$(date +%s.%N) $(rss) $(fds)" >>"$data/samples"
+      echo "$(date +%s.%N) $(rss) $(fds) $(parts)" >>"$data/samples"
       sleep "$SAMPLE"
     done ) &
   PIDS+=($!)
@@ -158,13 +171,13 @@ fi
   done ) &
 PIDS+=($!)
 sleep "$SECONDS_RUN"
-[ "$SAMPLE" -gt 0 ] && echo "$(date +%s.%N) $(rss) $(fds)" >>"$data/samples"
+[ "$SAMPLE" -gt 0 ] && echo "$(date +%s.%N) $(rss) $(fds) $(parts)" >>"$data/samples"
 c2=$(counters)
 report load "$c1" "$c2"
 echo "  $(period) (cumulative, at the end of the load)"
 json=$("${ctl[@]}" record stop --json 2>/dev/null || true)
 rss1=$(rss) fds1=$(fds)
-for p in "${PIDS[@]:1}"; do kill "$p" 2>/dev/null || true; done
+for p in "${PIDS[@]:1}"; do [ "$p" = "${WRAP_PID:-}" ] || kill "$p" 2>/dev/null || true; done
 [ -n "${WEB_PID:-}" ] && { wait "$WEB_PID" || true; }
 sleep 1
 summary() {  # label asked-Hz, then "frames dropped" lines on stdin
@@ -195,9 +208,11 @@ echo "rheod RSS ${rss0} -> ${rss1} kB; open descriptors ${fds0} -> ${fds1}"
 if [ "$SAMPLE" -gt 0 ]; then
   # Least squares over the samples: RSS [MB] and descriptors against time [min].
   awk -v every="$SAMPLE" 'NR == 1 {t0 = $1} {
-      t = ($1 - t0) / 60; r = $2 / 1024; f = $3; n++
+      t = ($1 - t0) / 60; r = $2 / 1024; f = $3; an = $4 / 1024; fi = $5 / 1024; th = $6; n++
       st += t; stt += t * t; sr += r; str += t * r; sf += f; stf += t * f
-      if (n == 1) {r1 = r; f1 = f} rl = r; fl = f; tl = t
+      sa += an; sta += t * an; sth += th; stth += t * th
+      if (n == 1) {r1 = r; f1 = f; th1 = th; an1 = an; fi1 = fi} rl = r; fl = f; tl = t
+      thl = th; anl = an; fil = fi; T[n] = t; R[n] = r
       if (n == 1 || r > rmax) rmax = r
     } END {
       d = n * stt - st * st; if (d <= 0) d = 1
@@ -205,6 +220,14 @@ if [ "$SAMPLE" -gt 0 ]; then
       printf "  RSS first %.1f MB, last %.1f MB, max %.1f MB; slope %+.3f MB/min\n", r1, rl, rmax,
         (n * str - st * sr) / d
       printf "  open descriptors first %d, last %d; slope %+.3f fds/min\n", f1, fl, (n * stf - st * sf) / d
+      printf "  of the RSS: anonymous %.1f -> %.1f MB (slope %+.3f MB/min), file-backed %.1f -> %.1f MB\n",
+        an1, anl, (n * sta - st * sa) / d, fi1, fil
+      printf "  threads first %d, last %d; slope %+.3f/min\n", th1, thl, (n * stth - st * sth) / d
+      # The second half alone: past the start-up of the load (connections, caches, store pages).
+      m = 0; ut = 0; utt = 0; ur = 0; utr = 0
+      for (i = int(n / 2) + 1; i <= n; i++) { m++; ut += T[i]; utt += T[i] * T[i]; ur += R[i]; utr += T[i] * R[i] }
+      e = m * utt - ut * ut; if (e <= 0) e = 1
+      printf "  RSS slope over the second half (%d samples): %+.3f MB/min\n", m, (m * utr - ut * ur) / e
     }' "$data/samples"
 fi
 rm -rf "$data"

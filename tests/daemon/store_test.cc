@@ -102,6 +102,36 @@ TEST_F(StoreTest, UnopenablePathIsAClearError) {
   EXPECT_NE(s.error().message.find("cannot open object store"), std::string::npos);
 }
 
+// The audit keeps its newest rows (a tenth more at most between prunes), and what is kept is the
+// newest, in order; 0 keeps everything.
+TEST_F(StoreTest, TheAuditKeepsItsNewestRows) {
+  auto s = Store::Open(path_);
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  (*s)->set_audit_keep(50);
+  for (int i = 0; i < 1000; ++i) {
+    AuditRow r;
+    r.at_unix_ms = 1000 + i;
+    r.token_name = "admin";
+    r.method = "SetParameters";
+    r.target = "1";
+    r.message = "change " + std::to_string(i);
+    ASSERT_TRUE((*s)->AppendAudit(r).ok());
+  }
+  auto rows = (*s)->ListAudit(0, 100000);
+  ASSERT_TRUE(rows.ok()) << rows.error().message;
+  EXPECT_GE(rows->size(), 50u);
+  EXPECT_LE(rows->size(), 55u);
+  for (size_t k = 0; k < rows->size(); ++k)
+    EXPECT_EQ((*rows)[k].message, "change " + std::to_string(999 - k));
+  (*s)->set_audit_keep(0);
+  for (int i = 0; i < 100; ++i) {
+    AuditRow r;
+    r.at_unix_ms = 5000 + i;
+    ASSERT_TRUE((*s)->AppendAudit(r).ok());
+  }
+  EXPECT_EQ((*s)->ListAudit(0, 100000)->size(), rows->size() + 100);
+}
+
 TEST(StoreIds, AreUnique) {
   std::set<std::string> ids;
   for (int i = 0; i < 1000; ++i) ids.insert(Store::NewId());

@@ -395,7 +395,20 @@ Status Store::AppendAudit(const AuditRow& r) {
   st.Text(6, r.message);
   if (sqlite3_step(st.get()) != SQLITE_DONE)
     return Error{ErrorCode::kUnavailable, "audit: " + st.Error()};
+  if (audit_keep_ == 0 || ++audit_since_prune_ < std::max<uint64_t>(1, audit_keep_ / 10))
+    return Status::Ok();
+  audit_since_prune_ = 0;
+  Stmt prune(db_, "DELETE FROM audit WHERE seq <= (SELECT MAX(seq) FROM audit) - ?");
+  if (!prune.ok()) return Internal("audit: " + prune.Error());
+  prune.Int(1, static_cast<int64_t>(audit_keep_));
+  if (sqlite3_step(prune.get()) != SQLITE_DONE)
+    return Error{ErrorCode::kUnavailable, "audit: pruning the oldest rows: " + prune.Error()};
   return Status::Ok();
+}
+
+void Store::set_audit_keep(uint64_t rows) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  audit_keep_ = rows;
 }
 
 Result<std::vector<AuditRow>> Store::ListAudit(int64_t since_unix_ms, uint32_t limit) {
