@@ -206,28 +206,28 @@ echo "jobs: $(count ok "$data/jobs") stored, $(count failed "$data/jobs") failed
   "parameter changes: $(count ok "$data/params") taken, $(count failed "$data/params") refused"
 echo "rheod RSS ${rss0} -> ${rss1} kB; open descriptors ${fds0} -> ${fds1}"
 if [ "$SAMPLE" -gt 0 ]; then
-  # Least squares over the samples: RSS [MB] and descriptors against time [min].
-  awk -v every="$SAMPLE" 'NR == 1 {t0 = $1} {
-      t = ($1 - t0) / 60; r = $2 / 1024; f = $3; an = $4 / 1024; fi = $5 / 1024; th = $6; n++
-      st += t; stt += t * t; sr += r; str += t * r; sf += f; stf += t * f
-      sa += an; sta += t * an; sth += th; stth += t * th
-      if (n == 1) {r1 = r; f1 = f; th1 = th; an1 = an; fi1 = fi} rl = r; fl = f; tl = t
-      thl = th; anl = an; fil = fi; T[n] = t; R[n] = r
-      if (n == 1 || r > rmax) rmax = r
-    } END {
-      d = n * stt - st * st; if (d <= 0) d = 1
-      printf "soak: %d samples every %d s over %.1f min\n", n, every, tl
-      printf "  RSS first %.1f MB, last %.1f MB, max %.1f MB; slope %+.3f MB/min\n", r1, rl, rmax,
-        (n * str - st * sr) / d
-      printf "  open descriptors first %d, last %d; slope %+.3f fds/min\n", f1, fl, (n * stf - st * sf) / d
+  # Least squares over the samples: RSS [MB], descriptors, anonymous RSS [MB] and threads against
+  # time [min]; the RSS also over the second half alone (past the start-up of the load:
+  # connections, caches, store pages).
+  awk -v every="$SAMPLE" '
+    function slope(y, from, to,   i, m, st, stt, sy, sty, d) {
+      for (i = from; i <= to; i++) { m++; st += T[i]; stt += T[i] * T[i]; sy += y[i]; sty += T[i] * y[i] }
+      d = m * stt - st * st
+      return d > 0 ? (m * sty - st * sy) / d : 0
+    }
+    NR == 1 {t0 = $1}
+    { n++; T[n] = ($1 - t0) / 60; R[n] = $2 / 1024; F[n] = $3; A[n] = $4 / 1024; B[n] = $5 / 1024; H[n] = $6
+      if (n == 1 || R[n] > rmax) rmax = R[n] }
+    END {
+      h = int(n / 2) + 1
+      printf "soak: %d samples every %d s over %.1f min\n", n, every, T[n]
+      printf "  RSS first %.1f MB, last %.1f MB, max %.1f MB; slope %+.3f MB/min\n", R[1], R[n], rmax,
+        slope(R, 1, n)
+      printf "  open descriptors first %d, last %d; slope %+.3f fds/min\n", F[1], F[n], slope(F, 1, n)
       printf "  of the RSS: anonymous %.1f -> %.1f MB (slope %+.3f MB/min), file-backed %.1f -> %.1f MB\n",
-        an1, anl, (n * sta - st * sa) / d, fi1, fil
-      printf "  threads first %d, last %d; slope %+.3f/min\n", th1, thl, (n * stth - st * sth) / d
-      # The second half alone: past the start-up of the load (connections, caches, store pages).
-      m = 0; ut = 0; utt = 0; ur = 0; utr = 0
-      for (i = int(n / 2) + 1; i <= n; i++) { m++; ut += T[i]; utt += T[i] * T[i]; ur += R[i]; utr += T[i] * R[i] }
-      e = m * utt - ut * ut; if (e <= 0) e = 1
-      printf "  RSS slope over the second half (%d samples): %+.3f MB/min\n", m, (m * utr - ut * ur) / e
+        A[1], A[n], slope(A, 1, n), B[1], B[n]
+      printf "  threads first %d, last %d; slope %+.3f/min\n", H[1], H[n], slope(H, 1, n)
+      printf "  RSS slope over the second half (%d samples): %+.3f MB/min\n", n - h + 1, slope(R, h, n)
     }' "$data/samples"
 fi
 rm -rf "$data"

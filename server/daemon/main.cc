@@ -206,6 +206,17 @@ std::string DefaultDataDir() {
 
 }  // namespace
 
+// Runs `fn` now and then every `period` on the timer's io_context while it returns true; the
+// timer's cancel() ends it.
+static void RunEvery(boost::asio::steady_timer& timer, std::chrono::steady_clock::duration period,
+              std::function<bool()> fn) {
+  if (!fn()) return;
+  timer.expires_after(period);
+  timer.async_wait([&timer, period, fn = std::move(fn)](const boost::system::error_code& ec) {
+    if (!ec) RunEvery(timer, period, fn);
+  });
+}
+
 int main(int argc, char** argv) {
   std::set_terminate(ReportUncaught);
   // Few malloc arenas, before any thread starts: gRPC's and the gateway's handler threads each
@@ -738,47 +749,37 @@ int main(int argc, char** argv) {
   }
   // Plaintext where others can listen: said once a minute, so nobody forgets it is on.
   boost::asio::steady_timer insecure_warning(io);
-  std::function<void()> warn_insecure = [&] {
+  RunEvery(insecure_warning, std::chrono::minutes(1), [&] {
     std::string where;
     if (relay_insecure) where = "--listen " + flags.listen;
     if (!tls && flags.http != "off" && !IsLoopbackListen(flags.http))
       where += (where.empty() ? "" : " and ") + std::string("--http ") + flags.http;
-    if (where.empty()) return;
+    if (where.empty()) return false;
     spdlog::warn(
         "--insecure: {} serve plaintext on a non-loopback address; tokens, sketches and frames "
         "cross the network readable (give --tls-cert/--tls-key instead)",
         where);
-    insecure_warning.expires_after(std::chrono::minutes(1));
-    insecure_warning.async_wait([&](const boost::system::error_code& ec) {
-      if (!ec) warn_insecure();
-    });
-  };
-  warn_insecure();
+    return true;
+  });
   // Streams whose clients stalled (a write that cannot complete, a tool stream gone quiet) are
   // ended, checked once a second; each such end is logged and counted in GetStatus.
   boost::asio::steady_timer idle_reaper(io);
-  std::function<void()> reap_idle = [&] {
-    if (int n = quotas.CancelIdle(); n > 0)
-      spdlog::warn("ended {} stream(s) idle for more than {:.0f} s (--stream-idle)", n,
-                   flags.stream_idle_s);
-    idle_reaper.expires_after(std::chrono::seconds(1));
-    idle_reaper.async_wait([&](const boost::system::error_code& ec) {
-      if (!ec) reap_idle();
+  if (flags.stream_idle_s > 0) {
+    RunEvery(idle_reaper, std::chrono::seconds(1), [&] {
+      if (int n = quotas.CancelIdle(); n > 0)
+        spdlog::warn("ended {} stream(s) idle for more than {:.0f} s (--stream-idle)", n,
+                     flags.stream_idle_s);
+      return true;
     });
-  };
-  if (flags.stream_idle_s > 0) reap_idle();
+  }
   // Memory the handlers freed goes back to the system every 10 s (glibc keeps freed pages of
   // its per-thread arenas otherwise; under a lab's load the RSS crept up by 0.7 MB a minute with
   // a flat heap). Off the loop, which never allocates.
   boost::asio::steady_timer trimmer(io);
-  std::function<void()> trim = [&] {
+  RunEvery(trimmer, std::chrono::seconds(10), [] {
     malloc_trim(0);
-    trimmer.expires_after(std::chrono::seconds(10));
-    trimmer.async_wait([&](const boost::system::error_code& ec) {
-      if (!ec) trim();
-    });
-  };
-  trim();
+    return true;
+  });
 
   // Shutdown, in the safe order and bounded: the device to minimum tension first, then the mesh
   // jobs are cancelled, the server and the loop stop. A job or a handler that does not stop in

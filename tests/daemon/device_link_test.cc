@@ -280,7 +280,6 @@ TEST(DeviceLink, AnUnpluggedLineIsReportedReopenedWithAGrowingBackoffAndTheForce
     gaps[i] = (attempt_ns[i + 1] - attempt_ns[i]) * 1e-9;
     EXPECT_GE(gaps[i], nominal[i] - 1e-3) << "attempts " << i << " and " << i + 1;
   }
-  const double gap1 = gaps[0], gap2 = gaps[1], gap3 = gaps[2];
   // The loop at its rate (1 kHz) while the port is away: ticks that waited on open() or on a
   // reply timeout (20 ms) would bring it to 50 a second. A quarter of the rate leaves room for a
   // machine loaded by sanitizers and parallel tests.
@@ -308,7 +307,7 @@ TEST(DeviceLink, AnUnpluggedLineIsReportedReopenedWithAGrowingBackoffAndTheForce
       "unplug reported in %.1f ms; attempts %.0f, %.0f, %.0f ms apart (nominal 200, 400, 800); "
       "%.0f ticks/s while away; reopened %.0f ms after the replug, felt again (%.2f N, %.2f N "
       "before) at %.0f ms\n",
-      report_ms, gap1 * 1e3, gap2 * 1e3, gap3 * 1e3, ticks_per_s, reopen_ms, t.displayed_force[1],
+      report_ms, gaps[0] * 1e3, gaps[1] * 1e3, gaps[2] * 1e3, ticks_per_s, reopen_ms, t.displayed_force[1],
       pressed, felt_ms);
   engine.Stop();
 }

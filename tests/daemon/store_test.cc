@@ -102,8 +102,7 @@ TEST_F(StoreTest, UnopenablePathIsAClearError) {
   EXPECT_NE(s.error().message.find("cannot open object store"), std::string::npos);
 }
 
-// The audit keeps its newest rows (a tenth more at most between prunes), and what is kept is the
-// newest, in order; 0 keeps everything.
+// The audit keeps its newest rows, in order; 0 keeps everything.
 TEST_F(StoreTest, TheAuditKeepsItsNewestRows) {
   auto s = Store::Open(path_);
   ASSERT_TRUE(s.ok()) << s.error().message;

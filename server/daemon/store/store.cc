@@ -395,12 +395,12 @@ Status Store::AppendAudit(const AuditRow& r) {
   st.Text(6, r.message);
   if (sqlite3_step(st.get()) != SQLITE_DONE)
     return Error{ErrorCode::kUnavailable, "audit: " + st.Error()};
-  if (audit_keep_ == 0 || ++audit_since_prune_ < std::max<uint64_t>(1, audit_keep_ / 10))
-    return Status::Ok();
-  audit_since_prune_ = 0;
-  Stmt prune(db_, "DELETE FROM audit WHERE seq <= (SELECT MAX(seq) FROM audit) - ?");
+  if (audit_keep_ == 0) return Status::Ok();
+  // The rows older than the newest audit_keep_ (seq is the rowid: a range on the primary key,
+  // usually the one row that fell out).
+  Stmt prune(db_, "DELETE FROM audit WHERE seq <= ?");
   if (!prune.ok()) return Internal("audit: " + prune.Error());
-  prune.Int(1, static_cast<int64_t>(audit_keep_));
+  prune.Int(1, sqlite3_last_insert_rowid(db_) - static_cast<int64_t>(audit_keep_));
   if (sqlite3_step(prune.get()) != SQLITE_DONE)
     return Error{ErrorCode::kUnavailable, "audit: pruning the oldest rows: " + prune.Error()};
   return Status::Ok();

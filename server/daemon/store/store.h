@@ -84,8 +84,8 @@ class Store {
   /// already was.
   Result<StoredToken> RevokeToken(const std::string& name, int64_t at_unix_ms);
 
-  /// Appends the row, then keeps the newest audit_keep() rows (up to a tenth more between
-  /// prunes): a daemon taking parameter changes at 10 Hz writes 864,000 rows a day.
+  /// Appends the row, then drops all but the newest audit_keep rows: a daemon taking parameter
+  /// changes at 10 Hz writes 864,000 rows a day.
   Status AppendAudit(const AuditRow& row);
   /// How many audit rows are kept (0 = all). Default kDefaultAuditKeep.
   void set_audit_keep(uint64_t rows);
@@ -105,7 +105,6 @@ class Store {
   uint64_t quota_bytes_ = 0;
   uint64_t used_bytes_ = 0;                  // under mutex_
   uint64_t audit_keep_ = kDefaultAuditKeep;  // under mutex_
-  uint64_t audit_since_prune_ = 0;           // rows appended since the last prune; under mutex_
 };
 
 }  // namespace rheo::daemon
