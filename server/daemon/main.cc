@@ -209,7 +209,7 @@ std::string DefaultDataDir() {
 // Runs `fn` now and then every `period` on the timer's io_context while it returns true; the
 // timer's cancel() ends it.
 static void RunEvery(boost::asio::steady_timer& timer, std::chrono::steady_clock::duration period,
-              std::function<bool()> fn) {
+                     std::function<bool()> fn) {
   if (!fn()) return;
   timer.expires_after(period);
   timer.async_wait([&timer, period, fn = std::move(fn)](const boost::system::error_code& ec) {

@@ -307,8 +307,8 @@ TEST(DeviceLink, AnUnpluggedLineIsReportedReopenedWithAGrowingBackoffAndTheForce
       "unplug reported in %.1f ms; attempts %.0f, %.0f, %.0f ms apart (nominal 200, 400, 800); "
       "%.0f ticks/s while away; reopened %.0f ms after the replug, felt again (%.2f N, %.2f N "
       "before) at %.0f ms\n",
-      report_ms, gaps[0] * 1e3, gaps[1] * 1e3, gaps[2] * 1e3, ticks_per_s, reopen_ms, t.displayed_force[1],
-      pressed, felt_ms);
+      report_ms, gaps[0] * 1e3, gaps[1] * 1e3, gaps[2] * 1e3, ticks_per_s, reopen_ms,
+      t.displayed_force[1], pressed, felt_ms);
   engine.Stop();
 }
 
