@@ -64,21 +64,25 @@ struct RunResult {
   double cpu = 0.0;  // [s]
   int64_t substeps = 0;
   int64_t restores = 0;
-  int64_t iterations = 0;  // CG iterations
+  int64_t iterations = 0;       // CG iterations
+  int32_t max_iterations = 0;   // the most CG iterations in one tick
+  std::vector<double> tick_us;  // each tick's CPU time [us]
 };
 
 RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_end,
                    double cg_tol = -1.0);
 
 double RmsError(const std::vector<Vec3>& a, const std::vector<Vec3>& b, double size);
+// RMS distance of `x` from `ref` after the best rigid fit of one onto the other, over `size`.
+double ShapeError(const std::vector<Vec3>& ref, const std::vector<Vec3>& x, double size);
 
 // The modes (main.cc maps the command line onto them); each returns the exit status.
-int Speed(int max_tets);                // speed.cc
-int Kernels(int target);                // kernels.cc
-int Preconditioners(int max_tets);      // precond.cc
-int Precision(const std::string& svg);  // precision.cc
-int ParameterChange();                  // params.cc
-int CgSweep();                          // cg.cc
+int Speed(int max_tets);                             // speed.cc
+int Kernels(int target, const std::string& sample);  // kernels.cc (sample empty: the box)
+int Preconditioners(int max_tets);                   // precond.cc
+int Precision(const std::string& svg);               // precision.cc
+int ParameterChange();                               // params.cc
+int CgSweep();                                       // cg.cc
 // A project sample (samples/NAME.json) meshed at about each target tet count (sketched.cc).
 struct SampleMeshes {
   std::vector<TetMesh> meshes;
@@ -89,6 +93,7 @@ Result<SampleMeshes> MeshSample(const std::string& sample, std::span<const int> 
 /// At about 5k, 20k and 100k tets, those not above `max_tets`.
 Result<SampleMeshes> MeshSampleSizes(const std::string& sample, int max_tets);
 int Sketched(const std::string& sample, int max_tets);   // sketched.cc
+int Budget(const std::string& sample, int max_tets);     // budget.cc
 int MultiRate(const std::string& sample, int max_tets);  // multirate.cc
 // Work-precision at each size of a sample (precision.cc): a table and one SVG per size.
 int PrecisionSizes(const std::string& sample, int max_tets, const std::string& svg_prefix);

@@ -4,6 +4,7 @@
 #include <ctime>
 
 #include "bench.h"
+#include "sim/deformation.h"
 #include "sim/primitives.h"
 
 namespace sim_bench {
@@ -73,14 +74,21 @@ RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_en
       const double ramp = std::min(1.0, (k * dt) / 0.1);
       for (int32_t i : top) s.SetExternalForce(i, Vec3(0, -ramp * sc.press_force / top.size(), 0));
     }
+    const double c0 = CpuSeconds();
     const StepResult st = s.Step(dt);
+    r.tick_us.push_back((CpuSeconds() - c0) * 1e6);
     r.substeps += st.substeps;
     r.restores += st.restored;
     r.iterations += st.solver_iterations;
+    r.max_iterations = std::max(r.max_iterations, st.solver_iterations);
   }
   r.cpu = CpuSeconds() - t0;
   r.x.assign(s.positions().begin(), s.positions().end());
   return r;
+}
+
+double ShapeError(const std::vector<Vec3>& ref, const std::vector<Vec3>& x, double size) {
+  return rheo::sim::MeasureShapeChange(ref, x, Vec3(0, 1, 0)).rms / size;
 }
 
 double RmsError(const std::vector<Vec3>& a, const std::vector<Vec3>& b, double size) {

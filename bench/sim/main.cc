@@ -2,13 +2,17 @@
 //   sim_bench speed [max_tets]       median wall time of one 1 ms tick vs mesh size
 //   sim_bench precision [svg_path]   work-precision: CPU time per simulated second vs error
 //   sim_bench bullet                 btSoftBody on the same tets and dt, vs the same reference
-//   sim_bench kernels [tets]         time of each force kernel and Jacobian product
+//   sim_bench kernels [tets] [sample]  time of each force kernel and Jacobian product (on a box,
+//                                    or on samples/SAMPLE.json meshed at about that size)
 //   sim_bench cg                     implicit integrator: CG tolerance vs error and cost
 //   sim_bench precond [max_tets]     CG preconditioners on one tick's system
 //   sim_bench sketched [sample] [max_tets]   a sketched sample at ~5k/20k/100k tets, drop and
 //                                    press, tick median and tails beside Bullet's step
 //   sim_bench precision-sizes [sample] [max_tets] [svg_prefix]  work-precision of each
 //                                    integrator and Bullet at ~5k/20k/100k tets, an SVG per size
+//   sim_bench budget [sample] [max_tets]  the implicit step's solver settings (preconditioner,
+//                                    kept blocks, iteration cap, tolerance): tick median and tail
+//                                    beside the error against a fine-tick reference, per size
 //   sim_bench multirate [sample] [max_tets]  a press through the renderer: the multi-rate scheme
 //                                    (patch every tick, whole every N) against the full solve
 // One thread throughout (the library has none).
@@ -25,10 +29,13 @@ int main(int argc, char** argv) {
   if (mode == "speed") return Speed(argc > 2 ? std::atoi(argv[2]) : 100000);
   if (mode == "cg") return CgSweep();
   if (mode == "params") return ParameterChange();
-  if (mode == "kernels") return Kernels(argc > 2 ? std::atoi(argv[2]) : 5000);
+  if (mode == "kernels")
+    return Kernels(argc > 2 ? std::atoi(argv[2]) : 5000, argc > 3 ? argv[3] : "");
   if (mode == "precond") return Preconditioners(argc > 2 ? std::atoi(argv[2]) : 100000);
   if (mode == "sketched")
     return Sketched(argc > 2 ? argv[2] : "bean", argc > 3 ? std::atoi(argv[3]) : 100000);
+  if (mode == "budget")
+    return Budget(argc > 2 ? argv[2] : "bean", argc > 3 ? std::atoi(argv[3]) : 20000);
   if (mode == "multirate")
     return MultiRate(argc > 2 ? argv[2] : "bean", argc > 3 ? std::atoi(argv[3]) : 100000);
   if (mode == "precision-sizes")
@@ -44,10 +51,11 @@ int main(int argc, char** argv) {
     return 1;
   }
 #endif
-  std::fprintf(
-      stderr,
-      "usage: sim_bench speed [max_tets] | kernels [tets] | precond [max_tets] | precision [svg] | "
-      "cg | params | bullet | sketched [sample] [max_tets] | multirate [sample] [max_tets] | "
-      "precision-sizes [sample] [max_tets] [svg_prefix]\n");
+  std::fprintf(stderr,
+               "usage: sim_bench speed [max_tets] | kernels [tets] [sample] | precond [max_tets] | "
+               "precision [svg] | "
+               "cg | params | bullet | sketched [sample] [max_tets] | budget [sample] [max_tets] | "
+               "multirate [sample] [max_tets] | "
+               "precision-sizes [sample] [max_tets] [svg_prefix]\n");
   return 1;
 }

@@ -76,11 +76,6 @@ void WriteSvg(const std::vector<Point>& pts, const std::string& path,
   f << "</svg>\n";
 }
 
-// RMS distance of `x` from `ref` after the best rigid fit of one onto the other, over `size`.
-double ShapeError(const std::vector<Vec3>& ref, const std::vector<Vec3>& x, double size) {
-  return rheo::sim::MeasureShapeChange(ref, x, Vec3(0, 1, 0)).rms / size;
-}
-
 }  // namespace
 
 int Precision(const std::string& svg) {

@@ -112,8 +112,8 @@ int Sketched(const std::string& sample, int max_tets) {
       "1 cm of the top. One thread.\n# Bullet: btSoftBody on the same tetrahedra, same dt, 4 "
       "position iterations, kLST 1.\n",
       sample.c_str(), ticks);
-  std::printf("%-6s %-6s %7s %8s %9s %9s %9s %9s %8s %8s %8s %10s %7s %10s %7s\n", "scene",
-              "precon", "tets", "res_mm", "med_us", "p99_us", "max_us", "us/1ktet", "cg_mean",
+  std::printf("%-6s %-7s %7s %8s %9s %9s %9s %9s %8s %8s %8s %10s %7s %10s %7s\n", "scene",
+              "solver", "tets", "res_mm", "med_us", "p99_us", "max_us", "us/1ktet", "cg_mean",
               "cg_max", "restores", "bullet_us", "ratio", "bullet2_us", "ratio2");
   for (size_t mi = 0; mi < meshes->meshes.size(); ++mi) {
     const TetMesh& mesh = meshes->meshes[mi];
@@ -127,19 +127,30 @@ int Sketched(const std::string& sample, int max_tets) {
       bullet = Median(RunBullet(base, 1e-3, ticks * 1e-3, 1.0, 0).tick_us);
       bullet_bend = Median(RunBullet(base, 1e-3, ticks * 1e-3, 1.0, 2).tick_us);
 #endif
-      // Both of the implicit integrator's CG preconditioners, one after the other.
-      for (double pc : {0.0, 1.0}) {
+      // The implicit step as it was before 2026-12-06 (blocks rebuilt every tick, no iteration
+      // budget), as it is now, and with the block preconditioner, one after the other.
+      struct Solver {
+        const char* name;
+        double preconditioner, lag, budget;
+      };
+      const Parameters d;
+      for (const Solver& v :
+           {Solver{"before", 0.0, 1.0, 0.0},
+            Solver{"default", d.cg_preconditioner, d.jacobian_lag, d.cg_iteration_budget},
+            Solver{"block", 1.0, d.jacobian_lag, d.cg_iteration_budget}}) {
         Scene sc = base;
-        sc.params.cg_preconditioner = pc;
+        sc.params.cg_preconditioner = v.preconditioner;
+        sc.params.jacobian_lag = v.lag;
+        sc.params.cg_iteration_budget = v.budget;
         const Tick t = RunRheo(sc, ticks);
         const double med = Median(t.us);
         std::printf(
-            "%-6s %-6s %7zu %8.2f %9.1f %9.1f %9.1f %9.1f %8.2f %8.0f %8lld %10.1f %7.2f %10.1f "
+            "%-6s %-7s %7zu %8.2f %9.1f %9.1f %9.1f %9.1f %8.2f %8.0f %8lld %10.1f %7.2f %10.1f "
             "%7.2f\n",
-            sc.name, pc > 0.5 ? "block" : "jacobi", tets, meshes->resolution[mi] * 1e3, med,
-            Percentile(t.us, 0.99), *std::max_element(t.us.begin(), t.us.end()),
-            med / (tets / 1000.0), t.substeps > 0 ? double(t.iterations) / t.substeps : 0.0,
-            t.max_iterations, static_cast<long long>(t.restores), bullet, bullet / med, bullet_bend,
+            sc.name, v.name, tets, meshes->resolution[mi] * 1e3, med, Percentile(t.us, 0.99),
+            *std::max_element(t.us.begin(), t.us.end()), med / (tets / 1000.0),
+            t.substeps > 0 ? double(t.iterations) / t.substeps : 0.0, t.max_iterations,
+            static_cast<long long>(t.restores), bullet, bullet / med, bullet_bend,
             bullet_bend / med);
         std::fflush(stdout);
       }
@@ -148,8 +159,11 @@ int Sketched(const std::string& sample, int max_tets) {
   std::printf(
       "# ratio = Bullet's median step / Rheo's median tick (> 1: Rheo faster); bullet: the "
       "tetrahedra's links only;\n# bullet2: plus bending links two apart (sim_bench bullet's "
-      "setting). cg = CG iterations per substep;\n# precon: the CG's preconditioner "
-      "(cg_preconditioner 0 = jacobi, 1 = block: 3x3 block Jacobi; jacobi is the default).\n");
+      "setting). cg = CG iterations per substep;\n# solver: before = Jacobi CG, blocks rebuilt "
+      "every tick, no iteration budget (until 2026-12-06); default = jacobian_lag %g,\n# "
+      "cg_iteration_budget %g; block = the same with the 3x3 block Jacobi preconditioner "
+      "(cg_preconditioner 1).\n",
+      Parameters{}.jacobian_lag, Parameters{}.cg_iteration_budget);
   return 0;
 }
 

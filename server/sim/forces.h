@@ -74,9 +74,11 @@ inline constexpr int kEdgeBlock = 16;
 /// product becomes one pass over the edges. Needs model.edge_tet_start (model.h).
 void AssembleEdgeBlocks(const Model& model, const ActiveTerms& terms, State& state);
 
-/// out = ApplyJacobian(terms, a, a) from the blocks AssembleEdgeBlocks stored (up to rounding).
+/// out = ApplyJacobian(terms, a, b) from the blocks AssembleEdgeBlocks stored (up to rounding):
+/// G a, plus for b != a the edges' damping blocks times (b - a) (G = K + D; the shape springs
+/// have no damping part).
 void ApplyAssembled(const Model& model, const ActiveTerms& terms, const State& state,
-                    std::span<const Vec3> a, std::span<Vec3> out);
+                    std::span<const Vec3> a, std::span<const Vec3> b, std::span<Vec3> out);
 
 /// Volume enclosed by the boundary faces [m^3].
 double EnclosedVolume(const Model& model, std::span<const Vec3> x);

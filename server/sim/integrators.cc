@@ -9,6 +9,15 @@ namespace {
 // Relative CG tolerance near rest (see ImplicitEulerSubstep).
 constexpr double kRestCgTolerance = 1e-5;
 
+// Parameters::cg_iteration_budget: a substep's CG iterations are capped at the budget times their
+// running mean (an exponential one, this weight on the newest, starting from
+// kMinBudgetIterations), and at no fewer than kMinBudgetIterations. Seeded from the object's first
+// solve instead (cold, 24 iterations at 4.6k tets, 51 at 21.6k), the budget did not bind in the
+// ticks after it, which were the slowest. The solve left short is still a descent on the system's
+// energy from the warm start; the next substep starts from the current state's residual.
+constexpr double kBudgetMeanWeight = 0.05;
+constexpr int kMinBudgetIterations = 8;
+
 // Depenetration speed cap: a node found below the floor is lifted out at most this fast [m/s].
 constexpr double kMaxDepenetrationSpeed = 1.0;
 // A node the floor pushed in the last substep stays held while it would end this one within this
@@ -189,8 +198,13 @@ RHEO_SIM_KERNEL void CgStartBlock(size_t n, const double* r, const double* P, co
 // + D_e to both ends), the shape springs' Gauss-Newton blocks sigma w w^T at each corner, and the
 // volume term's beta g g^T. `mask` (3n) is 1 on the unknowns and 0 on the coordinates the floor
 // holds; those leave the block (their rows and columns of the inverse are 0), as do fixed nodes.
+// With `assembled` (AssembleEdgeBlocks has run for `jac`), the edges' and springs' share comes
+// from the assembled blocks, one pass over the edges: node i's block gains G_e, node j's G_e^T
+// (the product's y = G_e (a_i - a_j) to i, -G_e^T (a_i - a_j) to j), symmetrised. Gathered from
+// the edges, tets and faces instead, the block preconditioner cost as much as the iterations it
+// saved at 21.6k tets.
 void BlockJacobi(const Model& m, const ActiveTerms& jac, State& s, double spring_h2, double beta,
-                 const double* mask) {
+                 const double* mask, bool assembled) {
   const size_t n = static_cast<size_t>(m.num_nodes);
   double* B = s.pre_block.data();
   double *xx = B, *yy = B + n, *zz = B + 2 * n, *xy = B + 3 * n, *xz = B + 4 * n, *yz = B + 5 * n;
@@ -207,7 +221,24 @@ void BlockJacobi(const Model& m, const ActiveTerms& jac, State& s, double spring
     xz[i] += a * ex * ez;
     yz[i] += a * ey * ez;
   };
-  if (jac.edges) {
+  if (assembled) {
+    const size_t ne = m.edges.size();
+    const float* G = s.edge_block.data();
+    for (size_t k = 0; k < ne; ++k) {
+      const float* g = G + 9 * (k - k % kEdgeBlock) + k % kEdgeBlock;
+      double b[9];
+      for (int c = 0; c < 9; ++c) b[c] = g[c * kEdgeBlock];
+      // G_e's symmetric part serves both ends (the transpose has the same one).
+      for (const int32_t i : {m.edges[k][0], m.edges[k][1]}) {
+        xx[i] += b[0];
+        yy[i] += b[4];
+        zz[i] += b[8];
+        xy[i] += 0.5 * (b[1] + b[3]);
+        xz[i] += 0.5 * (b[2] + b[6]);
+        yz[i] += 0.5 * (b[5] + b[7]);
+      }
+    }
+  } else if (jac.edges) {
     const size_t ne = m.edges.size();
     for (size_t k = 0; k < ne; ++k) {
       const double axial = s.edge_axial_k[k] - s.edge_lateral[k] + s.edge_axial_c[k];
@@ -217,7 +248,7 @@ void BlockJacobi(const Model& m, const ActiveTerms& jac, State& s, double spring
       add(static_cast<size_t>(m.edges[k][1]), axial, lat, ex, ey, ez);
     }
   }
-  if (jac.tet_volume) {
+  if (jac.tet_volume && !assembled) {
     const size_t nt = m.tets.size();
     for (size_t t = 0; t < nt; ++t) {
       const double coef = s.tet_coef[t];
@@ -227,7 +258,7 @@ void BlockJacobi(const Model& m, const ActiveTerms& jac, State& s, double spring
         add(static_cast<size_t>(m.tets[t][c]), coef, 0.0, w[3 * c], w[3 * c + 1], w[3 * c + 2]);
     }
   }
-  if (jac.area) {
+  if (jac.area && !assembled) {
     const size_t nf = m.faces.size();
     for (size_t f = 0; f < nf; ++f) {
       for (int c = 0; c < 3; ++c) {
@@ -397,19 +428,6 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   // inverted (BlockJacobi). Jacobi (0): the diagonal of the system (mass + trace/3 of each edge
   // block; the edge kernel added the edges' share), kept as its inverse, 0 on fixed nodes (dv = 0
   // there). inv_diag3 is both ways the mask of the unknowns.
-  const bool block = p.cg_preconditioner > 0.5;
-  if (block) {
-    BlockJacobi(m, jac, s, springs ? hh * hh : 0.0,
-                jac.global_volume ? s.global_k + s.global_c : 0.0, s.inv_diag3.data());
-  }
-  const double beta_v = jac.global_volume ? (s.global_k + s.global_c) / 3.0 : 0.0;
-  for (int32_t i = 0; i < n; ++i) {
-    const double d = s.diag[i] + beta_v * s.vol_grad[i].squaredNorm();
-    const double inv = m.fixed[i] ? 0.0 : 1.0 / d;
-    for (int c = 0; c < 3; ++c) s.inv_diag3[3 * i + c] *= inv;
-  }
-  const size_t n3 = 3 * static_cast<size_t>(n);
-  auto flat = [](std::vector<Vec3>& v) { return v.data()->data(); };
   // With shape springs in the system, their blocks can join the edges' (AssembleEdgeBlocks): one
   // pass over the edges per product instead of one over the edges and one over the elements.
   // Assembling costs about two element-wise products, so it is done when the elements in the
@@ -419,17 +437,54 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
   const bool assembled = (jac.area || jac.tet_volume) && !m.edge_tet_start.empty() &&
                          s.system_elements * std::max(s.last_cg_iterations, 1) >=
                              2 * static_cast<int64_t>(m.edges.size());
-  if (assembled) AssembleEdgeBlocks(m, jac, s);
+  if (assembled) {
+    // The blocks may be kept for jacobian_lag substeps: CG then solves for the correction to the
+    // warm start with the blocks of up to lag - 1 substeps back, while its right-hand side (the
+    // warm start's residual, from ApplyJacobian) is the current one. Rebuilt whenever the step,
+    // the elements in the system or the history (a restore, a teleport) changed.
+    const int32_t lag = std::max(1, static_cast<int32_t>(p.jacobian_lag));
+    const bool stale = s.edge_block_age < 0 || !s.have_prev || s.edge_block_hh != hh ||
+                       s.edge_block_elements != s.system_elements || s.edge_block_age + 1 >= lag;
+    if (stale) {
+      AssembleEdgeBlocks(m, jac, s);
+      s.edge_block_age = 0;
+      s.edge_block_hh = hh;
+      s.edge_block_elements = s.system_elements;
+    } else {
+      ++s.edge_block_age;
+    }
+  } else {
+    s.edge_block_age = -1;
+  }
+  const bool block = p.cg_preconditioner > 0.5;
+  if (block) {
+    BlockJacobi(m, jac, s, springs ? hh * hh : 0.0,
+                jac.global_volume ? s.global_k + s.global_c : 0.0, s.inv_diag3.data(), assembled);
+  }
+  const double beta_v = jac.global_volume ? (s.global_k + s.global_c) / 3.0 : 0.0;
+  for (int32_t i = 0; i < n; ++i) {
+    const double d = s.diag[i] + beta_v * s.vol_grad[i].squaredNorm();
+    const double inv = m.fixed[i] ? 0.0 : 1.0 / d;
+    for (int c = 0; c < 3; ++c) s.inv_diag3[3 * i + c] *= inv;
+  }
+  const size_t n3 = 3 * static_cast<size_t>(n);
+  auto flat = [](std::vector<Vec3>& v) { return v.data()->data(); };
   // out = A in (rows of fixed nodes zero); returns in . out.
   const double* sys_mass = springs ? s.sys_mass3.data() : s.mass3.data();
   auto apply_a = [&](std::vector<Vec3>& in, std::vector<Vec3>& out) {
     if (assembled)
-      ApplyAssembled(m, jac, s, in, out);
+      ApplyAssembled(m, jac, s, in, in, out);
     else
       ApplyJacobian(m, jac, s, in, in, out);
     return FinishProduct(n3, s.keep3.data(), sys_mass, flat(in), flat(out));
   };
-  ApplyJacobian(m, jac, s, s.cg_p, s.dv, s.cg_q);
+  // The warm start's product from the blocks when they are this substep's: G (k + u0) less the
+  // edges' damping of k. Element by element it cost as much as assembling them (14 % of a 21.6k-tet
+  // tick).
+  if (assembled && s.edge_block_age == 0)
+    ApplyAssembled(m, jac, s, s.cg_p, s.dv, s.cg_q);
+  else
+    ApplyJacobian(m, jac, s, s.cg_p, s.dv, s.cg_q);
   // The relative tolerance is taken against |b|, the impulse of the forces over the step.
   double b2 = 0.0, v_max2 = 0.0;
   for (int32_t i = 0; i < n; ++i) {
@@ -449,7 +504,13 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     // floor, and an error relative to it, repeated every tick, keeps light nodes jittering above
     // sleep_speed (warm-started, the tighter solve costs about one iteration at rest).
     const bool near_rest = p.sleep_time > 0.0 && v_max2 < 100.0 * p.sleep_speed * p.sleep_speed;
-    const int max_it = static_cast<int>(p.cg_max_iterations);
+    int max_it = static_cast<int>(p.cg_max_iterations);
+    const double mean_it = s.cg_mean_iterations > 0.0 ? s.cg_mean_iterations : kMinBudgetIterations;
+    if (p.cg_iteration_budget > 0.0) {
+      max_it =
+          std::min(max_it, std::max(kMinBudgetIterations,
+                                    static_cast<int>(std::ceil(p.cg_iteration_budget * mean_it))));
+    }
     double rz = 0.0, r2 = 0.0;
     if (block)
       CgStartBlock(static_cast<size_t>(n), flat(s.cg_r), s.pre_block.data(), s.inv_diag3.data(),
@@ -486,6 +547,7 @@ SolveStats ImplicitEulerSubstep(const Model& m, const Parameters& p, const Activ
     }
     stats.iterations = it;
     s.last_cg_iterations = it;
+    s.cg_mean_iterations = mean_it + kBudgetMeanWeight * (it - mean_it);
     stats.residual = scale > 0.0 ? r_norm / scale : 0.0;
   } else {
     for (int32_t i = 0; i < n; ++i) s.dv[i].setZero();

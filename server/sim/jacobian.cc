@@ -120,35 +120,58 @@ RHEO_SIM_KERNEL void EdgeJacobian(const Model& m, const State& s, const double* 
 // blocks of kEdgeBlock edges: a scalar gather of the differences, the 3x3 products vectorised
 // across the block (the blocks are stored that way, component-major), a scalar scatter with node
 // i's sum kept in registers over its run of edges (as in EdgeJacobianT).
-RHEO_SIM_KERNEL void EdgeBlockJacobian(const Model& m, const State& s, const double* a,
-                                       double* out) {
+// kDamp: the warm start's product K a + D b from G = K + D, i.e. G d less the edge's damping
+// D_e = axial_c e e^T of (a - b) across it, in the same pass and vectorised with it (a separate
+// scalar pass over the edges cost 60 % of the product).
+template <bool kDamp>
+[[gnu::always_inline]] inline void EdgeBlockJacobianT(const Model& m, const State& s,
+                                                      const double* a, const double* b,
+                                                      double* out) {
   const size_t ne = m.edges.size();
   const int32_t* E = m.edges.data()->data();
   const float* G = s.edge_block.data();
-  // d is zeroed once: the lanes past the last edge read it (their blocks are zero).
+  // d (and dk) are zeroed once: the lanes past the last edge read them (their blocks are zero,
+  // and so are their directions and dampers: State pads those to whole groups).
   alignas(64) double d[3][kEdgeBlock] = {}, y[3][kEdgeBlock], z[3][kEdgeBlock];
+  alignas(64) double dk[3][kEdgeBlock] = {};
+  const double* EX = s.edge_ex.data();
+  const double* EY = s.edge_ey.data();
+  const double* EZ = s.edge_ez.data();
+  const double* AC = s.edge_axial_c.data();
   int32_t cur = -1;
   double sx = 0.0, sy = 0.0, sz = 0.0;
   for (size_t k0 = 0; k0 < ne; k0 += kEdgeBlock) {
     const int nb = static_cast<int>(std::min<size_t>(kEdgeBlock, ne - k0));
     int32_t gi = -1;
-    double ai[3] = {};
+    double ai[3] = {}, ki[3] = {};
     for (int l = 0; l < nb; ++l) {
       const int32_t i = E[2 * (k0 + l)], j = E[2 * (k0 + l) + 1];
       if (i != gi) {
         gi = i;
         for (int c = 0; c < 3; ++c) ai[c] = a[3 * i + c];
+        if constexpr (kDamp)
+          for (int c = 0; c < 3; ++c) ki[c] = ai[c] - b[3 * i + c];
       }
       for (int c = 0; c < 3; ++c) d[c][l] = ai[c] - a[3 * j + c];
+      if constexpr (kDamp)
+        for (int c = 0; c < 3; ++c) dk[c][l] = ki[c] - (a[3 * j + c] - b[3 * j + c]);
     }
     const float* g = G + 9 * k0;  // this block's 9 rows of kEdgeBlock
 #pragma omp simd
     for (int l = 0; l < kEdgeBlock; ++l) {
       double gl[9];
       for (int c = 0; c < 9; ++c) gl[c] = g[c * kEdgeBlock + l];
+      double damp[3] = {};
+      if constexpr (kDamp) {
+        const size_t k = k0 + l;
+        const double w = AC[k] * (EX[k] * dk[0][l] + EY[k] * dk[1][l] + EZ[k] * dk[2][l]);
+        damp[0] = w * EX[k];
+        damp[1] = w * EY[k];
+        damp[2] = w * EZ[k];
+      }
       for (int r = 0; r < 3; ++r) {
-        y[r][l] = gl[3 * r] * d[0][l] + gl[3 * r + 1] * d[1][l] + gl[3 * r + 2] * d[2][l];
-        z[r][l] = gl[r] * d[0][l] + gl[3 + r] * d[1][l] + gl[6 + r] * d[2][l];
+        y[r][l] = gl[3 * r] * d[0][l] + gl[3 * r + 1] * d[1][l] + gl[3 * r + 2] * d[2][l] - damp[r];
+        z[r][l] = gl[r] * d[0][l] + gl[3 + r] * d[1][l] + gl[6 + r] * d[2][l] - damp[r];
       }
     }
     for (int l = 0; l < nb; ++l) {
@@ -167,6 +190,14 @@ RHEO_SIM_KERNEL void EdgeBlockJacobian(const Model& m, const State& s, const dou
     }
   }
   if (cur >= 0) AddToNode(out, cur, sx, sy, sz);
+}
+
+RHEO_SIM_KERNEL void EdgeBlockJacobian(const Model& m, const State& s, const double* a,
+                                       const double* b, double* out) {
+  if (b == a)
+    EdgeBlockJacobianT<false>(m, s, a, a, out);
+  else
+    EdgeBlockJacobianT<true>(m, s, a, b, out);
 }
 
 // out += the rank-one global volume term's product.
@@ -237,11 +268,13 @@ RHEO_SIM_KERNEL void AssembleEdgeBlocks(const Model& m, const ActiveTerms& terms
 }
 
 void ApplyAssembled(const Model& m, const ActiveTerms& terms, const State& s,
-                    std::span<const Vec3> a, std::span<Vec3> out) {
+                    std::span<const Vec3> a, std::span<const Vec3> b, std::span<Vec3> out) {
   const int32_t n = m.num_nodes;
   for (int32_t i = 0; i < n; ++i) out[i].setZero();
-  EdgeBlockJacobian(m, s, a.data()->data(), out.data()->data());
-  if (terms.global_volume) GlobalVolumeJacobian(m, s, a, a, out);
+  // Without the edges in the system the blocks hold no damping.
+  const double* bb = terms.edges ? b.data()->data() : a.data()->data();
+  EdgeBlockJacobian(m, s, a.data()->data(), bb, out.data()->data());
+  if (terms.global_volume) GlobalVolumeJacobian(m, s, a, b, out);
 }
 
 void ApplyJacobian(const Model& m, const ActiveTerms& terms, const State& s,

@@ -1,6 +1,7 @@
 #include "sim/params.h"
 
 #include <array>
+#include <charconv>
 #include <cmath>
 #include <string>
 
@@ -11,7 +12,7 @@ namespace {
 
 using P = Parameters;
 
-constexpr std::array<ParameterInfo, 26> kTable = {{
+constexpr std::array<ParameterInfo, 28> kTable = {{
     {"density", &P::density, 1.0, 1e5, "kg/m^3", "material density (lumped masses)"},
     {"k_v", &P::k_v, 0.0, 1e7, "N/m", "Voigt spring elasticity per edge (eq. 2)"},
     {"c_v", &P::c_v, 1e-6, 1e6, "N s/m", "Voigt damper viscosity per edge (eq. 2)"},
@@ -37,8 +38,12 @@ constexpr std::array<ParameterInfo, 26> kTable = {{
      "1 = backward Euler, 2 = BDF2 for the implicit integrator"},
     {"cg_tolerance", &P::cg_tolerance, 1e-14, 1.0, "-", "relative CG residual to stop at"},
     {"cg_max_iterations", &P::cg_max_iterations, 1.0, 10000.0, "-", "CG iteration cap"},
+    {"cg_iteration_budget", &P::cg_iteration_budget, 0.0, 100.0, "-",
+     "CG iterations a substep at most, as a multiple of their running mean (0: no budget)"},
     {"cg_preconditioner", &P::cg_preconditioner, 0.0, 1.0, "-",
      "0 = Jacobi, 1 = 3x3 block Jacobi for the implicit integrator's CG"},
+    {"jacobian_lag", &P::jacobian_lag, 1.0, 16.0, "-",
+     "substeps the implicit CG's assembled blocks are kept for (the residual is always fresh)"},
     {"max_speed", &P::max_speed, 1e-3, 1e5, "m/s", "node speed treated as an explosion"},
     {"sleep_speed", &P::sleep_speed, 0.0, 1.0, "m/s", "speed under which nodes are at rest"},
     {"sleep_time", &P::sleep_time, 0.0, 1e6, "s", "rest time before sleeping (0: never)"},
@@ -209,6 +214,19 @@ Result<Preset> FindPreset(std::string_view name) {
   }
   return InvalidArgument("unknown preset '" + std::string(name) +
                          "'; known: soft-jelly, hard-jelly, clay, organ");
+}
+
+bool ParseSetting(std::string_view text, std::string* name, double* value) {
+  const size_t eq = text.find('=');
+  if (eq == std::string_view::npos || eq == 0) return false;
+  const char* first = text.data() + eq + 1;
+  const char* last = text.data() + text.size();
+  double v = 0.0;
+  const auto [end, ec] = std::from_chars(first, last, v);
+  if (ec != std::errc() || end != last || first == last) return false;
+  *name = std::string(text.substr(0, eq));
+  *value = v;
+  return true;
 }
 
 }  // namespace rheo::sim

@@ -52,20 +52,29 @@ struct Parameters {
   double floor_height = 0.0;   // [m]
   double friction = 0.6;       // Coulomb friction coefficient with the floor [-]
   // Numerics.
-  double max_substeps = 64;       // cap on substeps per tick [-]
-  double implicit_damping = 0.0;  // 1: symplectic Euler treats the edge dampers' diagonal
-                                  // implicitly, lifting the damping step bound [-]
-  double implicit_substeps = 1;   // substeps per tick of the implicit integrator, at least one
-                                  // per 5 ms of the tick [-]
-  double implicit_order = 2;      // 1: backward Euler; 2: BDF2 (second order) [-]
-  double cg_tolerance = 5e-3;     // relative residual at which CG stops [-] (sim_bench cg)
-  double cg_max_iterations = 60;  // [-]
-  double cg_preconditioner = 0;   // 0: Jacobi (the system's diagonal); 1: 3x3 block Jacobi (each
-                                  // node's block: 20 % fewer CG iterations, no faster overall on
-                                  // the sketched bean, bench/sim/results/sketched.txt) [-]
-  double max_speed = 100.0;       // a node faster than this is an explosion [m/s]
-  double sleep_speed = 1e-4;      // below this for sleep_time every node is at rest [m/s]
-  double sleep_time = 0.5;        // [s]; 0 disables sleeping
+  double max_substeps = 64;        // cap on substeps per tick [-]
+  double implicit_damping = 0.0;   // 1: symplectic Euler treats the edge dampers' diagonal
+                                   // implicitly, lifting the damping step bound [-]
+  double implicit_substeps = 1;    // substeps per tick of the implicit integrator, at least one
+                                   // per 5 ms of the tick [-]
+  double implicit_order = 2;       // 1: backward Euler; 2: BDF2 (second order) [-]
+  double cg_tolerance = 5e-3;      // relative residual at which CG stops [-] (sim_bench cg)
+  double cg_max_iterations = 60;   // [-]
+  double cg_iteration_budget = 2;  // a substep's CG stops after this many times the running mean
+                                   // of its iterations (at least 8): the impact's solves, 3-5x
+                                   // the mean, made the slowest ticks; 0: cg_max_iterations only
+                                   // (sim_bench budget) [-]
+  double cg_preconditioner = 0;    // 0: Jacobi (the system's diagonal); 1: 3x3 block Jacobi (each
+                                   // node's block: 20 % fewer CG iterations, no faster overall on
+                                   // the sketched bean, bench/sim/results/sketched.txt) [-]
+  double jacobian_lag = 1;         // substeps the implicit system's assembled edge blocks are
+                                   // kept for (1: rebuilt every substep); the residual is always
+                                   // the current one, so only the CG's operator lags: 2 saves
+                                   // 7-13 % of a 21.6k-tet tick, at up to 1.7x the error of the
+                                   // step at the impact (sim_bench budget) [-]
+  double max_speed = 100.0;        // a node faster than this is an explosion [m/s]
+  double sleep_speed = 1e-4;       // below this for sleep_time every node is at rest [m/s]
+  double sleep_time = 0.5;         // [s]; 0 disables sleeping
 };
 
 /// Name, range and unit of one parameter (the run-time settable table).
@@ -85,6 +94,10 @@ std::span<const ParameterInfo> ParameterTable();
 /// parameter and its range; an unknown name lists the known ones.
 Status SetParameterByName(Parameters& params, std::string_view name, double value);
 Result<double> GetParameterByName(const Parameters& params, std::string_view name);
+
+/// A `name=number` setting (the command lines' --set): false when `text` is not one (no name,
+/// or anything but a whole number after the '='). The name is not checked here.
+bool ParseSetting(std::string_view text, std::string* name, double* value);
 
 /// Checks every field (used when a whole Parameters struct is handed in).
 Status ValidateParameters(const Parameters& params);

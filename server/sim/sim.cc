@@ -53,12 +53,13 @@ void InitState(const Model& m, double voigt_ratio, State& s) {
   s.f.assign(n, Vec3::Zero());
   s.vol_grad.assign(n, Vec3::Zero());
   s.damp_diag.assign(n, 0.0);
-  for (auto* vec : {&s.edge_ex, &s.edge_ey, &s.edge_ez}) vec->assign(ne, 0.0);
-  s.edge_axial_k.assign(ne, 0.0);
-  s.edge_axial_c.assign(ne, 0.0);
-  s.edge_lateral.assign(ne, 0.0);
-  // Whole groups of internal::kEdgeBlock edges (forces.h).
+  // Whole groups of internal::kEdgeBlock edges (forces.h): the block product reads the edge
+  // directions and dampers a group at a time, zeros past the last edge.
   const size_t groups = (ne + internal::kEdgeBlock - 1) / internal::kEdgeBlock;
+  for (auto* vec : {&s.edge_ex, &s.edge_ey, &s.edge_ez, &s.edge_axial_c})
+    vec->assign(internal::kEdgeBlock * groups, 0.0);
+  s.edge_axial_k.assign(ne, 0.0);
+  s.edge_lateral.assign(ne, 0.0);
   s.edge_block.assign(m.edge_tet_start.empty() ? 0 : 9 * internal::kEdgeBlock * groups, 0.0f);
   s.shape_coef.assign(m.faces.size(), 0.0);
   s.shape_dir.assign(3 * m.faces.size(), Vec3::Zero());
@@ -135,6 +136,7 @@ Status SimObject::SetParameter(std::string_view name, double value) {
   if (params_.density != old_density) ApplyDensity(params_.density);
   // A new voigt_ratio moves the Voigt natural length from the next step on; nothing to redo.
   UpdateDerived();
+  state_.edge_block_age = -1;  // the kept blocks (jacobian_lag) describe the old parameters
   Wake();
   return Status::Ok();
 }
@@ -144,6 +146,7 @@ Status SimObject::SetParameters(const Parameters& params) {
   params_ = params;
   ApplyDensity(params_.density);
   UpdateDerived();
+  state_.edge_block_age = -1;  // the kept blocks (jacobian_lag) describe the old parameters
   Wake();
   return Status::Ok();
 }
@@ -183,6 +186,7 @@ Status SimObject::SetParameters(PreparedParameters& prepared) {
     shape_implicit_tets_ = prepared.implicit_tets;
     shape_checked_h_ = prepared.shape_h;
   }
+  state_.edge_block_age = -1;
   Wake();
   return Status::Ok();
 }

@@ -34,7 +34,8 @@ struct State {
   std::vector<double> damp_diag;  // sum of the edge damping coefficients at each node (n) [N s/m]
   // Per-edge linearisation for the implicit integrator. The system is A = M + h D + h^2 K on the
   // velocity change [m/s], so every block and coefficient of it is a mass: h^2 times a stiffness
-  // [N/m] and h times a viscosity [N s/m] are both [N s^2/m] = [kg].
+  // [N/m] and h times a viscosity [N s/m] are both [N s^2/m] = [kg]. edge_e* and edge_axial_c
+  // hold whole groups of kEdgeBlock edges (forces.h), zero past the last edge.
   std::vector<double> edge_ex, edge_ey, edge_ez;  // unit edge vectors (e) [-]
   std::vector<double> edge_axial_k;               // h^2 k_eff along the edge (e) [N s^2/m = kg]
   std::vector<double> edge_axial_c;               // h c_eff along the edge (e) [N s^2/m = kg]
@@ -42,14 +43,22 @@ struct State {
   // Per edge, its 3x3 block of the system with the shape springs' blocks added, in groups of
   // kEdgeBlock edges (forces.h); empty without model.edge_tet.
   std::vector<float> edge_block;
+  // What edge_block was assembled for (Parameters::jacobian_lag): the substeps since (-1: not
+  // assembled, or no longer valid), and the step and the count of elements in the system then.
+  int32_t edge_block_age = -1;
+  double edge_block_hh = 0.0;
+  int64_t edge_block_elements = 0;
   std::vector<double> shape_coef;  // h^2 sigma per face, sigma [N/m] (k) [N s^2/m = kg]
   std::vector<Vec3> shape_dir;     // force directions, 3 per face (3k) [-]
   std::vector<float> tet_w;        // the same per tet, 12 in a row: [12 tet + 3 q + c] (12m) [-]
   std::vector<double> tet_coef;    // h^2 sigma per tet, sigma [N/m] (m) [N s^2/m = kg]
   // Per-tet split of the shape springs between the linear system and the explicit forces.
-  bool tet_split = false;             // tet_implicit decides; else all tets alike
-  int64_t system_elements = 0;        // tets and faces whose blocks are in the system
-  int32_t last_cg_iterations = 0;     // of the last implicit substep
+  bool tet_split = false;          // tet_implicit decides; else all tets alike
+  int64_t system_elements = 0;     // tets and faces whose blocks are in the system
+  int32_t last_cg_iterations = 0;  // of the last implicit substep
+  // Running mean of the implicit substeps' CG iterations (0: none yet, taken as 8), for
+  // Parameters::cg_iteration_budget.
+  double cg_mean_iterations = 0.0;
   std::vector<uint8_t> tet_implicit;  // 1 = in the linear system (m)
   std::vector<double> tet_stiffness;  // scratch for the split's bisection (m)
   std::vector<double> tet_rows;       // scratch: each tet's share of its nodes' row sums (4m)

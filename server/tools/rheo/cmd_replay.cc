@@ -9,6 +9,7 @@
 
 #include "commands.h"
 #include "daemon/replay/replay.h"
+#include "sim/params.h"
 
 namespace rheo::tools {
 namespace {
@@ -28,7 +29,7 @@ int RunReplay(const ReplayArgs& a) {
   for (const std::string& s : a.sets) {
     std::string name;
     double value = 0.0;
-    if (!ParseSetting(s, &name, &value)) {
+    if (!sim::ParseSetting(s, &name, &value)) {
       std::cerr << "rheo replay: --set expects name=number, got '" << s << "'\n";
       return 1;
     }

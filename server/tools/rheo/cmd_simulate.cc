@@ -17,6 +17,7 @@
 #include "commands.h"
 #include "common/tet_mesh_io.h"
 #include "sim/deformation.h"
+#include "sim/params.h"
 #include "sim/sim.h"
 
 // common/tet_mesh_io.cc calls Vec3 differences' cross() without including <Eigen/Geometry>, so
@@ -68,7 +69,7 @@ int RunSimulate(const SimulateOptions& o) {
   for (const std::string& s : o.sets) {
     std::string name;
     double value = 0.0;
-    if (!ParseSetting(s, &name, &value)) {
+    if (!sim::ParseSetting(s, &name, &value)) {
       std::cerr << "rheo simulate: --set expects name=number, got '" << s << "'\n";
       return 1;
     }

@@ -3,9 +3,6 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
-#include <cstddef>
-#include <exception>
-#include <string>
 
 namespace rheo::tools {
 
@@ -16,20 +13,5 @@ void AddContourCommand(CLI::App& app);   // cmd_contour.cc
 void AddMeshCommand(CLI::App& app);      // cmd_mesh.cc
 void AddSimulateCommand(CLI::App& app);  // cmd_simulate.cc
 void AddReplayCommand(CLI::App& app);    // cmd_replay.cc
-
-/// A `--set name=number` argument: false when it is not one.
-inline bool ParseSetting(const std::string& s, std::string* name, double* value) {
-  const size_t eq = s.find('=');
-  if (eq == std::string::npos || eq == 0) return false;
-  try {
-    size_t used = 0;
-    *value = std::stod(s.substr(eq + 1), &used);
-    if (used != s.size() - eq - 1) return false;
-  } catch (const std::exception&) {
-    return false;
-  }
-  *name = s.substr(0, eq);
-  return true;
-}
 
 }  // namespace rheo::tools
