@@ -26,7 +26,18 @@ Result<std::vector<uart::BoardInfo>> IdentifyUartBoards(ByteTransport& transport
       transport.DiscardInput();
       if (Status s = transport.Write(request, 100'000); !s.ok()) return s.error();
       r = transport.ReadExact(reply, 2 * uart::kReplyWaitMs * 1000);
-      if (r.ok()) break;
+      if (r.ok()) {
+        // A late board answers every try it was sent: the reply just read may be the first
+        // try's, and the later tries' replies are still coming. Left on the line, the next one
+        // was read as the first current reply ("current reply header 8 is not board 0's": 8 is
+        // board 0's board-info header), which failed start-up on a loaded machine. Each
+        // earlier try gets one reply window to arrive, and is dropped.
+        std::array<uint8_t, uart::kBoardInfoReplySize> late;
+        for (int k = 0; k < attempt; ++k)
+          (void)transport.ReadExact(late, 2 * uart::kReplyWaitMs * 1000);
+        transport.DiscardInput();
+        break;
+      }
     }
     if (!r.ok()) {
       return Error{ErrorCode::kUnavailable,

@@ -5,6 +5,8 @@
 #include <random>
 
 #include "drivers/sh4_board.h"
+#include "drivers/transport.h"
+#include "drivers/uart_motor_link.h"
 
 namespace rheo::drivers {
 namespace {
@@ -170,6 +172,44 @@ TEST(Sh4Board, LinkUnwrapsInvertsAndMasksButtons) {
   EXPECT_EQ(board->last_da, cmd);
   EXPECT_EQ(buttons, 0x5u);
   EXPECT_EQ(link.rotary_switch(), 3);
+}
+
+// A board that answers late answers every try it was sent. The first try's reply arrives only
+// after the second try was written, so two replies come; the second must not stay on the line,
+// where the first current exchange read it ("current reply header 8 is not board 0's").
+class LateBoard : public ByteTransport {
+ public:
+  Status Write(std::span<const uint8_t> data, int) override {
+    if (data.size() == kBoardInfoRequestSize) ++unanswered_;
+    return Status::Ok();
+  }
+  Status ReadExact(std::span<uint8_t> data, int) override {
+    if (reads_++ == 0 || unanswered_ == 0)
+      return Error{ErrorCode::kDeadlineExceeded, "no reply within the window"};
+    --unanswered_;
+    BoardInfo info;
+    info.model = 7;
+    info.n_motor = 8;
+    info.n_force = 4;
+    EXPECT_EQ(data.size(), kBoardInfoReplySize);
+    EncodeBoardInfoReply(info, data);
+    return Status::Ok();
+  }
+  void DiscardInput() override {}  // nothing has arrived when it is called
+  int unanswered() const { return unanswered_; }
+
+ private:
+  int reads_ = 0;
+  int unanswered_ = 0;
+};
+
+TEST(UartMotorLink, ALateBoardsSecondReplyIsDroppedNotReadAsTheNextOne) {
+  LateBoard line;
+  auto boards = IdentifyUartBoards(line, {0}, 8);
+  ASSERT_TRUE(boards.ok()) << boards.error().message;
+  ASSERT_EQ(boards->size(), 1u);
+  EXPECT_EQ((*boards)[0].n_motor, 8);
+  EXPECT_EQ(line.unanswered(), 0) << "a board-info reply is left on the line";
 }
 
 }  // namespace
