@@ -43,6 +43,7 @@ struct Run {
   std::vector<double> tick_us;   // the tick's own work
   std::vector<double> whole_us;  // the whole's steps (multi-rate)
   int64_t restores = 0;
+  int64_t cg = 0, substeps = 0;  // CG iterations and substeps over the ticks (the loop's step)
   rheo::sim::MultiRateCounts counts;
   int32_t patch_nodes = 0, patch_tets = 0;
 };
@@ -95,6 +96,8 @@ Run RunFull(const SimObject& settled, const Grip& grip, const Vec3& start) {
     r.tick_us.push_back(Us(t0, Clock::now()));
     r.force.push_back(hand);
     r.restores += st.restored;
+    r.cg += st.solver_iterations;
+    r.substeps += st.substeps;
   }
   return r;
 }
@@ -115,8 +118,10 @@ Run RunMultiRate(const SimObject& settled, const Grip& grip, const Vec3& start, 
     }
     const auto t0 = Clock::now();
     const Vec3 hand = Couple(grip, mr->positions(), DeviceAt(start, k), loads);
-    mr->FastTick(loads, kDt);
+    const StepResult st = mr->FastTick(loads, kDt);
     r.tick_us.push_back(Us(t0, Clock::now()));
+    r.cg += st.solver_iterations;
+    r.substeps += st.substeps;
     r.force.push_back(hand);
   }
   r.counts = mr->counts();
@@ -142,9 +147,9 @@ int MultiRate(const std::string& sample, int max_tets) {
       "(radius %.0f mm) every tick, the whole every N ticks.\n",
       sample.c_str(), kSettleTicks, kCoupling, kToolRadius * 1e3, kSpeed * 1e3,
       PatchOptions{}.radius * 1e3);
-  std::printf("%7s %4s %9s %9s %9s %8s %8s %10s %10s %9s %8s %7s %8s %8s\n", "tets", "N",
+  std::printf("%7s %4s %9s %9s %9s %8s %8s %10s %10s %9s %8s %7s %8s %8s %7s %6s\n", "tets", "N",
               "tick_med", "tick_p99", "tick_max", "whole_us", "whole/N", "F_rms_err", "F_peak_err",
-              "F_peak", "patch_n", "tets_p", "rebuilds", "restores");
+              "F_peak", "patch_n", "tets_p", "rebuilds", "restores", "cg/tick", "sub/t");
   for (size_t mi = 0; mi < meshes->meshes.size(); ++mi) {
     Parameters p = FindPreset("organ")->params;
     p.sleep_time = 0.0;
@@ -170,10 +175,13 @@ int MultiRate(const std::string& sample, int max_tets) {
     const Run full = RunFull(settled, grip, start);
     double f_peak = 0.0;
     for (const Vec3& f : full.force) f_peak = std::max(f_peak, f.norm());
-    std::printf("%7zu %4s %9.1f %9.1f %9.1f %8s %8s %10s %10s %9.3f %8s %7s %8s %8lld\n", tets,
-                "full", Median(full.tick_us), Percentile(full.tick_us, 0.99),
-                *std::max_element(full.tick_us.begin(), full.tick_us.end()), "-", "-", "-", "-",
-                f_peak, "-", "-", "-", static_cast<long long>(full.restores));
+    const double ticks = static_cast<double>(kPressTicks);
+    std::printf(
+        "%7zu %4s %9.1f %9.1f %9.1f %8s %8s %10s %10s %9.3f %8s %7s %8s %8lld %7.2f %6.2f\n", tets,
+        "full", Median(full.tick_us), Percentile(full.tick_us, 0.99),
+        *std::max_element(full.tick_us.begin(), full.tick_us.end()), "-", "-", "-", "-", f_peak,
+        "-", "-", "-", static_cast<long long>(full.restores), full.cg / ticks,
+        full.substeps / ticks);
     std::fflush(stdout);
     for (int period : {1, 5, 10, 20}) {
       const Run mr = RunMultiRate(settled, grip, start, period);
@@ -189,12 +197,14 @@ int MultiRate(const std::string& sample, int max_tets) {
                       mr.force[k].y());
       const double whole = Median(mr.whole_us);
       std::printf(
-          "%7zu %4d %9.1f %9.1f %9.1f %8.0f %8.2f %10.4f %10.4f %9.3f %8d %7d %8lld %8lld\n", tets,
-          period, Median(mr.tick_us), Percentile(mr.tick_us, 0.99),
+          "%7zu %4d %9.1f %9.1f %9.1f %8.0f %8.2f %10.4f %10.4f %9.3f %8d %7d %8lld %8lld %7.2f "
+          "%6.2f\n",
+          tets, period, Median(mr.tick_us), Percentile(mr.tick_us, 0.99),
           *std::max_element(mr.tick_us.begin(), mr.tick_us.end()), whole, whole / (period * 1e3),
           std::sqrt(e2 / mr.force.size()), e_peak, f_peak, mr.patch_nodes, mr.patch_tets,
           static_cast<long long>(mr.counts.rebuilds),
-          static_cast<long long>(mr.restores + mr.counts.patch_restores));
+          static_cast<long long>(mr.restores + mr.counts.patch_restores), mr.cg / ticks,
+          mr.substeps / ticks);
       std::fflush(stdout);
     }
   }
@@ -202,7 +212,8 @@ int MultiRate(const std::string& sample, int max_tets) {
       "# tick: the loop's own work per tick [us] (full: the whole step + contact; N: patch step + "
       "contact).\n# whole_us: median of the whole's steps, each covering N ticks; whole/N < 1: it "
       "keeps up with real time on\n# its own core. F_*_err: |F_multirate - F_full| on the hand "
-      "over the press [N]; F_peak: the full solve's peak.\n");
+      "over the press [N]; F_peak: the full solve's peak.\n# cg/tick, sub/t: the loop's step's CG "
+      "iterations and substeps per tick (full: the whole's; N: the patch's).\n");
   return 0;
 }
 

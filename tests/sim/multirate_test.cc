@@ -260,6 +260,25 @@ TEST(MultiRate, AStiffCouplingStaysStableOverALongPeriodAsASpringInTheWhole) {
   EXPECT_GT(err_force, 10.0 * err_spring) << "as a constant force: " << err_force << " N RMS";
 }
 
+// The patch steps every tick with the parameters as given (one substep a tick), not with the
+// whole's, which cover its period: Create passed the whole's own parameters by reference, and the
+// patch took them after the whole's substeps had been raised (4 a tick at a 10-tick period,
+// 8 at 20 in sim_bench multirate; 10 in the daemon).
+TEST(MultiRate, ThePatchStepsWithTheGivenSubstepsNotTheWholes) {
+  for (int32_t period : {1, 10, 20}) {
+    auto mr = MultiRate::Create(SettledBox(), period, PatchOptions{});
+    ASSERT_TRUE(mr.ok()) << mr.error().message;
+    const Vec3 focus = mr->whole().positions()[TopMiddle(mr->whole())];
+    auto patch = mr->BuildPatch(focus);
+    ASSERT_TRUE(patch.ok()) << patch.error().message;
+    EXPECT_EQ(patch->object().parameters().implicit_substeps, 1.0) << "period " << period;
+    EXPECT_EQ(mr->whole_substeps(), period == 1 ? 1 : period == 10 ? 4 : 8) << "period " << period;
+    mr->Sync(focus);
+    const StepResult r = mr->FastTick({}, 1e-3);
+    EXPECT_EQ(r.substeps, 1) << "period " << period;
+  }
+}
+
 TEST(MultiRate, RefusesABadPeriod) {
   EXPECT_FALSE(MultiRate::Create(SettledBox(), 0, PatchOptions{}).ok());
   EXPECT_FALSE(MultiRate::Create(nullptr, 5, PatchOptions{}).ok());
