@@ -207,7 +207,8 @@ class MultiRate {
                                     const PatchOptions& options);
   /// New parameters for the whole (its substeps made for its period again) and for the patches
   /// built from now on. The whole's thread; allocates.
-  Status SetParameters(const Parameters& params);
+  /// Taken by value: Create passes the whole's own parameters, which this changes.
+  Status SetParameters(Parameters params);
   /// Twice the whole's substeps per step (at most `max_substeps`), e.g. after its step had to be
   /// restored (a drop onto the floor that its substeps did not hold). Kept until SetParameters.
   /// The whole's thread; returns the substeps now.

@@ -208,8 +208,6 @@ if (identity.error) {
 } else if (identity.role === 'ROLE_VIEWER') {
   viewOnly = true;
 }
-window.rheo.viewOnly = viewOnly;
-window.rheo.identity = identity.error ? null : { name: identity.tokenName, role: roleName[identity.role] || 'none' };
 $('#who').textContent = identity.error ? 'not signed in' : `${identity.tokenName} (${roleName[identity.role] || '?'})`;
 
 const template = $('#studio-panels');
@@ -267,6 +265,11 @@ if (!identity.error) {
   window.rheo.playback = playback;
 }
 pbTemplate.remove();
+// Published once the document has its final controls (templates gone or placed): whoever waits on
+// window.rheo.identity (the browser tests) then sees the page as its user will. Set before, a
+// viewer's page was once read with the studio's inputs still in it.
+window.rheo.viewOnly = viewOnly;
+window.rheo.identity = identity.error ? null : { name: identity.tokenName, role: roleName[identity.role] || 'none' };
 
 function showAppAlert(msg) {
   const el = $('#app-alert');
