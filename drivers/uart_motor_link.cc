@@ -17,24 +17,26 @@ Result<std::vector<uart::BoardInfo>> IdentifyUartBoards(ByteTransport& transport
     std::array<uint8_t, uart::kBoardInfoRequestSize> request;
     uart::EncodeBoardInfoRequest(id, request);
     std::array<uint8_t, uart::kBoardInfoReplySize> reply;
-    // Three tries: the board (or an emulator on a busy machine, where a missed 20 ms answer had
-    // failed rheod's start-up about once in a few dozen) gets 60 ms in all before it is declared
-    // absent.
-    constexpr int kTries = 3;
+    // Each try waits twice as long as the one before: 20, 40, 80 and 160 ms, 300 ms in all
+    // before the board is declared absent. Three tries of 20 ms each had failed start-up on a
+    // busy machine, where an emulated board's thread and the pty's delivery can both be late.
+    constexpr int kTries = 4;
     Status r = Status::Ok();
     for (int attempt = 0; attempt < kTries; ++attempt) {
+      const int window_us = (2 * uart::kReplyWaitMs * 1000) << attempt;
       transport.DiscardInput();
       if (Status s = transport.Write(request, 100'000); !s.ok()) return s.error();
-      r = transport.ReadExact(reply, 2 * uart::kReplyWaitMs * 1000);
+      r = transport.ReadExact(reply, window_us);
       if (r.ok()) {
-        // A late board answers every try it was sent: the reply just read may be the first
+        // A late board answers every try it was sent: the reply just read may be an earlier
         // try's, and the later tries' replies are still coming. Left on the line, the next one
         // was read as the first current reply ("current reply header 8 is not board 0's": 8 is
         // board 0's board-info header), which failed start-up on a loaded machine. Each
-        // earlier try gets one reply window to arrive, and is dropped.
+        // earlier try's reply gets one window to arrive and is dropped; the first that does not
+        // come ends the wait (the ones before it were discarded before a later try was sent).
         std::array<uint8_t, uart::kBoardInfoReplySize> late;
         for (int k = 0; k < attempt; ++k)
-          (void)transport.ReadExact(late, 2 * uart::kReplyWaitMs * 1000);
+          if (!transport.ReadExact(late, window_us).ok()) break;
         transport.DiscardInput();
         break;
       }

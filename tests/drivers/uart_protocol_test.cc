@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <string>
+#include <vector>
 
 #include "drivers/sh4_board.h"
 #include "drivers/transport.h"
@@ -210,6 +212,52 @@ TEST(UartMotorLink, ALateBoardsSecondReplyIsDroppedNotReadAsTheNextOne) {
   ASSERT_EQ(boards->size(), 1u);
   EXPECT_EQ((*boards)[0].n_motor, 8);
   EXPECT_EQ(line.unanswered(), 0) << "a board-info reply is left on the line";
+}
+
+// A board (or an emulated one on a busy machine) whose reply takes `delay_us`: it arrives within
+// a try only if that try waits long enough. Records every window it was given.
+class SlowBoard : public ByteTransport {
+ public:
+  explicit SlowBoard(int delay_us) : delay_us_(delay_us) {}
+  Status Write(std::span<const uint8_t>, int) override { return Status::Ok(); }
+  Status ReadExact(std::span<uint8_t> data, int timeout_us) override {
+    windows_us.push_back(timeout_us);
+    if (delay_us_ < 0 || timeout_us < delay_us_)
+      return Error{ErrorCode::kDeadlineExceeded, "0 of 7 bytes within the window"};
+    BoardInfo info;
+    info.n_motor = 8;
+    EncodeBoardInfoReply(info, data);
+    return Status::Ok();
+  }
+  void DiscardInput() override {}
+  std::vector<int> windows_us;
+
+ private:
+  int delay_us_;  // < 0: never answers
+};
+
+TEST(UartMotorLink, ABoardAnsweringAfter70MsIsFoundByALongerTry) {
+  SlowBoard line(70'000);  // three 20 ms tries in a row missed it
+  auto boards = IdentifyUartBoards(line, {0}, 8);
+  ASSERT_TRUE(boards.ok()) << boards.error().message;
+  EXPECT_EQ((*boards)[0].n_motor, 8);
+  ASSERT_GE(line.windows_us.size(), 3u);
+  EXPECT_EQ(line.windows_us[0], 20'000);
+  EXPECT_EQ(line.windows_us[1], 40'000);
+  EXPECT_EQ(line.windows_us[2], 80'000);
+}
+
+TEST(UartMotorLink, AnAbsentBoardIsDeclaredAbsentAfter300Ms) {
+  SlowBoard line(-1);
+  auto boards = IdentifyUartBoards(line, {0}, 8);
+  ASSERT_FALSE(boards.ok());
+  EXPECT_EQ(boards.error().code, ErrorCode::kUnavailable);
+  EXPECT_NE(boards.error().message.find("board 0 did not answer board-info in 4 tries"),
+            std::string::npos)
+      << boards.error().message;
+  int total = 0;
+  for (int w : line.windows_us) total += w;
+  EXPECT_EQ(total, 300'000);
 }
 
 }  // namespace
