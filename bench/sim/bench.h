@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "samples.h"
 #include "sim/sim.h"
 
 namespace sim_bench {
@@ -77,21 +78,12 @@ double RmsError(const std::vector<Vec3>& a, const std::vector<Vec3>& b, double s
 double ShapeError(const std::vector<Vec3>& ref, const std::vector<Vec3>& x, double size);
 
 // The modes (main.cc maps the command line onto them); each returns the exit status.
-int Speed(int max_tets);                             // speed.cc
-int Kernels(int target, const std::string& sample);  // kernels.cc (sample empty: the box)
-int Preconditioners(int max_tets);                   // precond.cc
-int Precision(const std::string& svg);               // precision.cc
-int ParameterChange();                               // params.cc
-int CgSweep();                                       // cg.cc
-// A project sample (samples/NAME.json) meshed at about each target tet count (sketched.cc).
-struct SampleMeshes {
-  std::vector<TetMesh> meshes;
-  std::vector<double> resolution;  // the edge length asked of the mesher [m]
-};
-/// Each mesh's lowest point is on the floor (y = 0).
-Result<SampleMeshes> MeshSample(const std::string& sample, std::span<const int> targets);
-/// At about 5k, 20k and 100k tets, those not above `max_tets`.
-Result<SampleMeshes> MeshSampleSizes(const std::string& sample, int max_tets);
+int Speed(int max_tets);                                 // speed.cc
+int Kernels(int target, const std::string& sample);      // kernels.cc (sample empty: the box)
+int Preconditioners(int max_tets);                       // precond.cc
+int Precision(const std::string& svg);                   // precision.cc
+int ParameterChange();                                   // params.cc
+int CgSweep();                                           // cg.cc
 int Sketched(const std::string& sample, int max_tets);   // sketched.cc
 int Budget(const std::string& sample, int max_tets);     // budget.cc
 int MultiRate(const std::string& sample, int max_tets);  // multirate.cc

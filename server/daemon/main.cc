@@ -594,8 +594,9 @@ int main(int argc, char** argv) {
   ctx.player = player.get();
   spdlog::info(
       "tick cost model: {:.2f} ns per element and explicit substep, {:.2f} per implicit substep, "
-      "{:.2f} per CG iteration; {}",
+      "{:.2f} per CG iteration, {:.1f} and {:.1f} more per tetrahedron in the linear system; {}",
       ctx.tick_cost.explicit_ns, ctx.tick_cost.implicit_ns, ctx.tick_cost.cg_ns,
+      ctx.tick_cost.system_ns, ctx.tick_cost.system_cg_ns,
       flags.sim_budget_percent > 0.0
           ? fmt::format("the simulation may take {:.0f} us of each tick", ctx.sim_budget_ns * 1e-3)
           : std::string("no admission by cost (--sim-budget 0)"));

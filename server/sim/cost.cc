@@ -42,7 +42,10 @@ TickCost PredictTickCost(const Model& model, const PreparedParameters& prepared,
   } else {
     out.substeps = SimObject::ImplicitSubsteps(p, dt);
     out.cg_iterations = EstimatedCgIterations(p);
-    out.ns = out.substeps * n * (c.implicit_ns + out.cg_iterations * c.cg_ns);
+    out.system_tets = prepared.implicit_tets;
+    const double t = static_cast<double>(out.system_tets);
+    out.ns = out.substeps * (n * (c.implicit_ns + out.cg_iterations * c.cg_ns) +
+                             t * (c.system_ns + out.cg_iterations * c.system_cg_ns));
   }
   return out;
 }
@@ -57,6 +60,8 @@ std::string DescribeTickCost(const Model& model, const TickCost& cost, Integrato
     s += "implicit, " + std::to_string(cost.substeps) +
          (cost.substeps == 1 ? " substep" : " substeps") + ", about " +
          std::to_string(cost.cg_iterations) + " CG iterations each";
+    if (cost.system_tets > 0)
+      s += ", " + std::to_string(cost.system_tets) + " tetrahedra in the linear system";
   }
   return s;
 }

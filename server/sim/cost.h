@@ -20,6 +20,12 @@ struct CostCoefficients {
   double explicit_ns = 0.0;  // one symplectic Euler substep
   double implicit_ns = 0.0;  // one implicit substep without its CG iterations (forces, Jacobian)
   double cg_ns = 0.0;        // one conjugate-gradient iteration of an implicit substep
+  // What a tetrahedron whose shape springs are in the implicit system adds (their Jacobian
+  // blocks), per such tetrahedron [ns]: to an implicit substep, and to each CG iteration.
+  // Sketched meshes put 6 % (4.6k) to all (100k) of their tets there; without these terms the
+  // model came out 1.6-1.75x low at 21.6k and 100k (tick_cost_bench).
+  double system_ns = 0.0;
+  double system_cg_ns = 0.0;
 };
 
 /// The prediction for one object.
@@ -28,6 +34,7 @@ struct TickCost {
   bool substeps_capped = false;  // the explicit bound asked for more than max_substeps
   int32_t cg_iterations = 0;     // per substep, as estimated (implicit only)
   int64_t elements = 0;          // nodes + edges + faces + tetrahedra
+  int64_t system_tets = 0;       // tetrahedra whose shape springs are in the linear system
   double ns = 0.0;               // predicted time of one awake tick [ns]
 };
 

@@ -1,0 +1,61 @@
+// The admission cost model (sim::PredictTickCost): its terms, with coefficients given here (the
+// daemon measures them at start-up; tick_cost_bench compares the model with measured ticks).
+#include "sim/cost.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "sim/primitives.h"
+#include "sim/sim.h"
+
+namespace rheo::sim {
+namespace {
+
+TEST(TickCost, TetrahedraInTheLinearSystemAddTheirOwnTerms) {
+  auto mesh = MakeBoxTetMesh(4, 3, 3, Vec3(0.05, 0.04, 0.04));
+  ASSERT_TRUE(mesh.ok());
+  const Parameters soft = FindPreset("soft-jelly")->params;
+  Parameters stiff = soft;
+  stiff.tet_k *= 1e3;  // shape springs too stiff to stay explicit at 1 ms
+  auto object = SimObject::Create(*mesh, soft, Integrator::kImplicitEuler);
+  ASSERT_TRUE(object.ok());
+  auto a = (*object)->Prepare(soft, Integrator::kImplicitEuler, 1e-3);
+  auto b = (*object)->Prepare(stiff, Integrator::kImplicitEuler, 1e-3);
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_GT(b->implicit_tets, a->implicit_tets);
+
+  CostCoefficients c;
+  c.implicit_ns = 10.0;
+  c.cg_ns = 2.0;
+  c.system_ns = 30.0;
+  c.system_cg_ns = 3.0;
+  const Model& m = (*object)->model();
+  const TickCost ca = PredictTickCost(m, *a, Integrator::kImplicitEuler, 1e-3, c);
+  const TickCost cb = PredictTickCost(m, *b, Integrator::kImplicitEuler, 1e-3, c);
+  EXPECT_EQ(ca.system_tets, a->implicit_tets);
+  EXPECT_EQ(cb.system_tets, b->implicit_tets);
+  ASSERT_EQ(ca.substeps, cb.substeps);
+  ASSERT_EQ(ca.cg_iterations, cb.cg_iterations);
+  // Every element: implicit_ns + iterations x cg_ns; every system tet: system_ns + iterations x
+  // system_cg_ns, per substep.
+  const double n = static_cast<double>(ElementCount(m));
+  const double it = cb.cg_iterations;
+  EXPECT_DOUBLE_EQ(cb.ns, cb.substeps * (n * (10.0 + it * 2.0) +
+                                         static_cast<double>(cb.system_tets) * (30.0 + it * 3.0)));
+  EXPECT_DOUBLE_EQ(cb.ns - ca.ns, cb.substeps * static_cast<double>(cb.system_tets - ca.system_tets) *
+                                      (30.0 + it * 3.0));
+  const std::string said = DescribeTickCost(m, cb, Integrator::kImplicitEuler);
+  EXPECT_NE(said.find(std::to_string(cb.system_tets) + " tetrahedra in the linear system"),
+            std::string::npos)
+      << said;
+
+  // Coefficients left at zero (an older calibration) predict what the model did before.
+  CostCoefficients old = c;
+  old.system_ns = old.system_cg_ns = 0.0;
+  EXPECT_DOUBLE_EQ(PredictTickCost(m, *b, Integrator::kImplicitEuler, 1e-3, old).ns,
+                   cb.substeps * n * (10.0 + it * 2.0));
+}
+
+}  // namespace
+}  // namespace rheo::sim
