@@ -202,8 +202,8 @@ int main(int argc, char** argv) {
       }
       auto prepared = (*object)->Prepare(cs.params, sim::Integrator::kImplicitEuler, cs.dt);
       if (!prepared.ok()) return 1;
-      const sim::TickCost cost = sim::PredictTickCost(
-          (*object)->model(), *prepared, sim::Integrator::kImplicitEuler, cs.dt, c);
+      const sim::TickCost cost = sim::PredictTickCost((*object)->model(), *prepared,
+                                                      sim::Integrator::kImplicitEuler, cs.dt, c);
       const Measured m = Press(**object, cs.dt, cs.dt > kDt ? 2 : 10, cs.steps);
       const double at_cg = model_at(cost, m.cg_per_substep);
       std::printf("%-8zu %-34s %8d %9.2f %9d %12.1f %12.1f %8.2f %14.1f %8.2f %9lld\n",

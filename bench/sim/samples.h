@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "common/status.h"
 #include "common/geometry.h"
+#include "common/status.h"
 
 namespace sim_bench {
 

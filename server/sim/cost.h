@@ -43,8 +43,16 @@ int64_t ElementCount(const Model& model);
 
 /// CG iterations per implicit substep the model counts on: about 8 at the default tolerance of
 /// 5e-3 (the benchmarks measure 1.6-6.4 per tick from 1k to 103k tetrahedra), growing with
-/// log(1/tolerance) as a Jacobi-preconditioned CG does, never above cg_max_iterations.
-int32_t EstimatedCgIterations(const Parameters& params);
+/// log(1/tolerance) as a Jacobi-preconditioned CG does, and with `refinement`
+/// (CgRefinementScale), never above cg_max_iterations.
+int32_t EstimatedCgIterations(const Parameters& params, double refinement = 1.0);
+
+/// How many times the iterations of a mesh as coarse as the 5k-tet bean (6.5 mm mean edges,
+/// 1 ms substeps) a Jacobi-preconditioned CG needs on `model` at substeps of `substep` [s]: its
+/// condition number grows with (substep / edge length)^2, so the iterations about linearly;
+/// measured in tick_cost_bench on the pressed bean, (6.5 mm / mean edge)^0.75 (9.4, 14.3 and
+/// 20.4 iterations at 6.5, 3.9 and 2.3 mm). Never below 1: coarser meshes keep the 8.
+double CgRefinementScale(const Model& model, double substep);
 
 /// The cost of one awake tick of `dt` [s] for an object of `model` stepped with `prepared`
 /// (from SimObject::Prepare) and `integrator`.

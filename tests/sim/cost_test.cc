@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 
 #include "sim/primitives.h"
@@ -43,8 +44,9 @@ TEST(TickCost, TetrahedraInTheLinearSystemAddTheirOwnTerms) {
   const double it = cb.cg_iterations;
   EXPECT_DOUBLE_EQ(cb.ns, cb.substeps * (n * (10.0 + it * 2.0) +
                                          static_cast<double>(cb.system_tets) * (30.0 + it * 3.0)));
-  EXPECT_DOUBLE_EQ(cb.ns - ca.ns, cb.substeps * static_cast<double>(cb.system_tets - ca.system_tets) *
-                                      (30.0 + it * 3.0));
+  EXPECT_DOUBLE_EQ(
+      cb.ns - ca.ns,
+      cb.substeps * static_cast<double>(cb.system_tets - ca.system_tets) * (30.0 + it * 3.0));
   const std::string said = DescribeTickCost(m, cb, Integrator::kImplicitEuler);
   EXPECT_NE(said.find(std::to_string(cb.system_tets) + " tetrahedra in the linear system"),
             std::string::npos)
@@ -55,6 +57,44 @@ TEST(TickCost, TetrahedraInTheLinearSystemAddTheirOwnTerms) {
   old.system_ns = old.system_cg_ns = 0.0;
   EXPECT_DOUBLE_EQ(PredictTickCost(m, *b, Integrator::kImplicitEuler, 1e-3, old).ns,
                    cb.substeps * n * (10.0 + it * 2.0));
+}
+
+TEST(TickCost, FinerMeshesAndLongerSubstepsAreCountedOnForMoreCgIterations) {
+  // The same 1 cm block at two refinements: the finer one's cells are half as wide (its mean edge
+  // is within 2 % of half: the mix of edge directions differs a little with the count).
+  auto coarse = MakeBoxTetMesh(4, 4, 4, Vec3(0.01, 0.01, 0.01));
+  auto fine = MakeBoxTetMesh(8, 8, 8, Vec3(0.01, 0.01, 0.01));
+  auto big = MakeBoxTetMesh(4, 3, 3, Vec3(0.1, 0.08, 0.08));
+  ASSERT_TRUE(coarse.ok() && fine.ok() && big.ok());
+  const Parameters p = FindPreset("organ")->params;
+  auto a = SimObject::Create(*coarse, p, Integrator::kImplicitEuler);
+  auto b = SimObject::Create(*fine, p, Integrator::kImplicitEuler);
+  auto c = SimObject::Create(*big, p, Integrator::kImplicitEuler);
+  ASSERT_TRUE(a.ok() && b.ok() && c.ok());
+  const double sa = CgRefinementScale((*a)->model(), 1e-3);
+  const double sb = CgRefinementScale((*b)->model(), 1e-3);
+  ASSERT_GT(sa, 1.0);  // 2.5 mm cells: finer than the 6.5 mm mean edges counted on
+  EXPECT_NEAR(sb / sa, std::pow(2.0, 0.75), 0.03);
+  EXPECT_NEAR(CgRefinementScale((*a)->model(), 2e-3) / sa, std::pow(2.0, 0.75), 1e-9);
+  // Coarser than the reference: the default count, not fewer.
+  EXPECT_EQ(CgRefinementScale((*c)->model(), 1e-3), 1.0);
+  EXPECT_EQ(EstimatedCgIterations(p, 1.0), 8);
+  EXPECT_EQ(EstimatedCgIterations(p, 0.5), 8);
+  EXPECT_EQ(EstimatedCgIterations(p, 2.0), 16);
+  Parameters capped = p;
+  capped.cg_max_iterations = 12;
+  EXPECT_EQ(EstimatedCgIterations(capped, 2.0), 12);
+  // The prediction uses it.
+  CostCoefficients k;
+  k.implicit_ns = 10.0;
+  k.cg_ns = 2.0;
+  auto prepared = (*b)->Prepare(p, Integrator::kImplicitEuler, 1e-3);
+  ASSERT_TRUE(prepared.ok());
+  const TickCost cost =
+      PredictTickCost((*b)->model(), *prepared, Integrator::kImplicitEuler, 1e-3, k);
+  EXPECT_EQ(cost.cg_iterations,
+            EstimatedCgIterations(p, CgRefinementScale((*b)->model(), 1e-3 / cost.substeps)));
+  EXPECT_GT(cost.cg_iterations, 8);
 }
 
 }  // namespace
