@@ -1,9 +1,9 @@
 // tick_cost_bench: the daemon's admission cost model (sim::PredictTickCost with the coefficients
 // MeasureTickCost calibrates at start-up) against measured ticks, in one run: boxes of 1k, 5k and
 // 19k tetrahedra, each integrator, default and heavier settings; then a sketched sample at about
-// 5k, 20k and 100k tetrahedra as `rheo scene add --preset organ --integrator implicit` runs it,
-// pressed: its full tick, and the step a multi-rate whole takes over 10 ticks. Prints tables of
-// medians.
+// 5k, 20k and 100k tetrahedra as `rheo scene add --preset P --integrator implicit` runs it
+// (organ, hard jelly, soft jelly), pressed: its full tick, and the step a multi-rate whole takes
+// over 10 ticks. Prints tables of medians.
 //
 //   tick_cost_bench [ticks] [sample] [max_tets]
 //     (default 60 measured ticks per row after 10 warm-up ticks; bean; 100000; a sample of "-"
@@ -175,42 +175,45 @@ int main(int argc, char** argv) {
   constexpr int kPeriod = 10;  // the daemon's multi-rate period (scene_service.cc)
   const int whole_steps = std::max(5, ticks / kPeriod);
   std::printf(
-      "# samples/%s.json, organ preset, implicit, pressed with 3 N; 'full tick' = one 1 ms tick; "
+      "# samples/%s.json, three presets, implicit, pressed with 3 N; 'full tick' = one 1 ms tick; "
       "'whole/%d' = the multi-rate whole's step over %d ticks (1 ms substeps), %d steps\n",
       sample.c_str(), kPeriod, kPeriod, whole_steps);
-  for (const TetMesh& mesh : meshes->meshes) {
-    sim::Parameters p = sim::FindPreset("organ")->params;
-    p.sleep_time = 0.0;
-    sim::PatchOptions po;
-    po.tick = kDt;
-    po.whole_substep = kDt;  // as rheod sets it
-    struct Case {
-      const char* name;
-      sim::Parameters params;
-      double dt;
-      int steps;
-    };
-    const Case cases[] = {
-        {"full tick", p, kDt, ticks},
-        {"whole/10", sim::MultiRate::WholeParameters(p, kPeriod, po), kPeriod * kDt, whole_steps},
-    };
-    for (const Case& cs : cases) {
-      auto object = sim::SimObject::Create(mesh, cs.params, sim::Integrator::kImplicitEuler);
-      if (!object.ok()) {
-        std::fprintf(stderr, "object: %s\n", object.error().message.c_str());
-        return 1;
+  for (const char* preset : {"organ", "hard-jelly", "soft-jelly"})
+    for (const TetMesh& mesh : meshes->meshes) {
+      sim::Parameters p = sim::FindPreset(preset)->params;
+      p.sleep_time = 0.0;
+      sim::PatchOptions po;
+      po.tick = kDt;
+      po.whole_substep = kDt;  // as rheod sets it
+      struct Case {
+        std::string name;
+        sim::Parameters params;
+        double dt;
+        int steps;
+      };
+      const Case cases[] = {
+          {std::string(preset) + ", full tick", p, kDt, ticks},
+          {std::string(preset) + ", whole/10", sim::MultiRate::WholeParameters(p, kPeriod, po),
+           kPeriod * kDt, whole_steps},
+      };
+      for (const Case& cs : cases) {
+        auto object = sim::SimObject::Create(mesh, cs.params, sim::Integrator::kImplicitEuler);
+        if (!object.ok()) {
+          std::fprintf(stderr, "object: %s\n", object.error().message.c_str());
+          return 1;
+        }
+        auto prepared = (*object)->Prepare(cs.params, sim::Integrator::kImplicitEuler, cs.dt);
+        if (!prepared.ok()) return 1;
+        const sim::TickCost cost = sim::PredictTickCost((*object)->model(), *prepared,
+                                                        sim::Integrator::kImplicitEuler, cs.dt, c);
+        const Measured m = Press(**object, cs.dt, cs.dt > kDt ? 2 : 10, cs.steps);
+        const double at_cg = model_at(cost, m.cg_per_substep);
+        std::printf("%-8zu %-34s %8d %9.2f %9d %12.1f %12.1f %8.2f %14.1f %8.2f %9lld\n",
+                    (*object)->model().tets.size(), cs.name.c_str(), cost.substeps,
+                    m.cg_per_substep, cost.cg_iterations, cost.ns * 1e-3, m.median_us,
+                    m.median_us / (cost.ns * 1e-3), at_cg, m.median_us / at_cg,
+                    static_cast<long long>(cost.system_tets));
       }
-      auto prepared = (*object)->Prepare(cs.params, sim::Integrator::kImplicitEuler, cs.dt);
-      if (!prepared.ok()) return 1;
-      const sim::TickCost cost = sim::PredictTickCost((*object)->model(), *prepared,
-                                                      sim::Integrator::kImplicitEuler, cs.dt, c);
-      const Measured m = Press(**object, cs.dt, cs.dt > kDt ? 2 : 10, cs.steps);
-      const double at_cg = model_at(cost, m.cg_per_substep);
-      std::printf("%-8zu %-34s %8d %9.2f %9d %12.1f %12.1f %8.2f %14.1f %8.2f %9lld\n",
-                  (*object)->model().tets.size(), cs.name, cost.substeps, m.cg_per_substep,
-                  cost.cg_iterations, cost.ns * 1e-3, m.median_us, m.median_us / (cost.ns * 1e-3),
-                  at_cg, m.median_us / at_cg, static_cast<long long>(cost.system_tets));
     }
-  }
   return 0;
 }

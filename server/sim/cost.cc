@@ -11,10 +11,10 @@ namespace {
 // Iterations counted at the default tolerance, and that tolerance.
 constexpr double kIterationsAtDefault = 8.0;
 constexpr double kDefaultTolerance = 5e-3;
-// The mesh those iterations were counted on (the bean at about 5k tets), and how they grow as the
-// edges get shorter or the substeps longer (CgRefinementScale).
-constexpr double kReferenceEdge = 6.5e-3;   // [m]
-constexpr double kReferenceSubstep = 1e-3;  // [s]
+// How the iterations grow with the edges across the object (CgRefinementScale): the pressed
+// 5k-tet bean (a 113 mm diagonal over 6.5 mm mean edges: 17.4 across) took 12 a tick.
+constexpr double kReferenceEdgesAcross = 17.4;
+constexpr double kIterationsAtReference = 12.0;
 constexpr double kRefinementExponent = 0.75;
 
 }  // namespace
@@ -32,14 +32,15 @@ int32_t EstimatedCgIterations(const Parameters& p, double refinement) {
   return static_cast<int32_t>(std::clamp(it, 1.0, std::max(1.0, p.cg_max_iterations)));
 }
 
-double CgRefinementScale(const Model& model, double substep) {
-  if (model.edge_rest_length.empty() || !(substep > 0.0)) return 1.0;
+double CgRefinementScale(const Model& model) {
+  if (model.edge_rest_length.empty() || !(model.size > 0.0)) return 1.0;
   double sum = 0.0;
   for (double l : model.edge_rest_length) sum += l;
   const double mean = sum / static_cast<double>(model.edge_rest_length.size());
   if (!(mean > 0.0)) return 1.0;
-  const double finer = (kReferenceEdge / mean) * (substep / kReferenceSubstep);
-  return std::max(1.0, std::pow(finer, kRefinementExponent));
+  const double across = model.size / mean;
+  return std::max(1.0, kIterationsAtReference / kIterationsAtDefault *
+                           std::pow(across / kReferenceEdgesAcross, kRefinementExponent));
 }
 
 TickCost PredictTickCost(const Model& model, const PreparedParameters& prepared,
@@ -57,7 +58,7 @@ TickCost PredictTickCost(const Model& model, const PreparedParameters& prepared,
     out.ns = out.substeps * n * c.explicit_ns;
   } else {
     out.substeps = SimObject::ImplicitSubsteps(p, dt);
-    out.cg_iterations = EstimatedCgIterations(p, CgRefinementScale(model, dt / out.substeps));
+    out.cg_iterations = EstimatedCgIterations(p, CgRefinementScale(model));
     out.system_tets = prepared.implicit_tets;
     const double t = static_cast<double>(out.system_tets);
     out.ns = out.substeps * (n * (c.implicit_ns + out.cg_iterations * c.cg_ns) +

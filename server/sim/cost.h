@@ -47,12 +47,14 @@ int64_t ElementCount(const Model& model);
 /// (CgRefinementScale), never above cg_max_iterations.
 int32_t EstimatedCgIterations(const Parameters& params, double refinement = 1.0);
 
-/// How many times the iterations of a mesh as coarse as the 5k-tet bean (6.5 mm mean edges,
-/// 1 ms substeps) a Jacobi-preconditioned CG needs on `model` at substeps of `substep` [s]: its
-/// condition number grows with (substep / edge length)^2, so the iterations about linearly;
-/// measured in tick_cost_bench on the pressed bean, (6.5 mm / mean edge)^0.75 (9.4, 14.3 and
-/// 20.4 iterations at 6.5, 3.9 and 2.3 mm). Never below 1: coarser meshes keep the 8.
-double CgRefinementScale(const Model& model, double substep);
+/// The factor on the default tolerance's 8 CG iterations for `model`: the CG carries the step's
+/// impulse across the object about an edge per iteration, so the iterations grow with the mean
+/// edges across its bounding-box diagonal. Fitted in tick_cost_bench on the pressed bean,
+/// 12 x (across / 17.4)^0.75: organ took 12.0 / 17.7 / 24.1 iterations a tick at 17 / 29 / 49
+/// across (4.6k / 21.6k / 101k tets); hard and soft jelly were within 15 % of organ at each
+/// size, though their (h D + h^2 K) / M differ 3.5x, so the material is left out. Never below 1:
+/// coarse meshes keep the 8 (about 10 across and fewer).
+double CgRefinementScale(const Model& model);
 
 /// The cost of one awake tick of `dt` [s] for an object of `model` stepped with `prepared`
 /// (from SimObject::Prepare) and `integrator`.

@@ -59,11 +59,11 @@ TEST(TickCost, TetrahedraInTheLinearSystemAddTheirOwnTerms) {
                    cb.substeps * n * (10.0 + it * 2.0));
 }
 
-TEST(TickCost, FinerMeshesAndLongerSubstepsAreCountedOnForMoreCgIterations) {
-  // The same 1 cm block at two refinements: the finer one's cells are half as wide (its mean edge
-  // is within 2 % of half: the mix of edge directions differs a little with the count).
-  auto coarse = MakeBoxTetMesh(4, 4, 4, Vec3(0.01, 0.01, 0.01));
-  auto fine = MakeBoxTetMesh(8, 8, 8, Vec3(0.01, 0.01, 0.01));
+TEST(TickCost, FinerMeshesAreCountedOnForMoreCgIterations) {
+  // The same 10 x 1 x 1 cm bar at two refinements: the finer one's cells are half as wide (its
+  // mean edge is within 2 % of half: the mix of edge directions differs a little with the count).
+  auto coarse = MakeBoxTetMesh(40, 4, 4, Vec3(0.1, 0.01, 0.01));
+  auto fine = MakeBoxTetMesh(80, 8, 8, Vec3(0.1, 0.01, 0.01));
   auto big = MakeBoxTetMesh(4, 3, 3, Vec3(0.1, 0.08, 0.08));
   ASSERT_TRUE(coarse.ok() && fine.ok() && big.ok());
   const Parameters p = FindPreset("organ")->params;
@@ -71,13 +71,18 @@ TEST(TickCost, FinerMeshesAndLongerSubstepsAreCountedOnForMoreCgIterations) {
   auto b = SimObject::Create(*fine, p, Integrator::kImplicitEuler);
   auto c = SimObject::Create(*big, p, Integrator::kImplicitEuler);
   ASSERT_TRUE(a.ok() && b.ok() && c.ok());
-  const double sa = CgRefinementScale((*a)->model(), 1e-3);
-  const double sb = CgRefinementScale((*b)->model(), 1e-3);
-  ASSERT_GT(sa, 1.0);  // 2.5 mm cells: finer than the 6.5 mm mean edges counted on
+  const double sa = CgRefinementScale((*a)->model());
+  const double sb = CgRefinementScale((*b)->model());
+  ASSERT_GT(sa, 1.0);  // more edges across than the 17.4 of the 5k bean counted on
   EXPECT_NEAR(sb / sa, std::pow(2.0, 0.75), 0.03);
-  EXPECT_NEAR(CgRefinementScale((*a)->model(), 2e-3) / sa, std::pow(2.0, 0.75), 1e-9);
+  // The same bar scaled up: as many edges across, as many iterations.
+  TetMesh scaled = *coarse;
+  for (Vec3& x : scaled.positions) x *= 3.0;
+  auto d = SimObject::Create(scaled, p, Integrator::kImplicitEuler);
+  ASSERT_TRUE(d.ok());
+  EXPECT_NEAR(CgRefinementScale((*d)->model()), sa, 1e-9);
   // Coarser than the reference: the default count, not fewer.
-  EXPECT_EQ(CgRefinementScale((*c)->model(), 1e-3), 1.0);
+  EXPECT_EQ(CgRefinementScale((*c)->model()), 1.0);
   EXPECT_EQ(EstimatedCgIterations(p, 1.0), 8);
   EXPECT_EQ(EstimatedCgIterations(p, 0.5), 8);
   EXPECT_EQ(EstimatedCgIterations(p, 2.0), 16);
@@ -92,8 +97,7 @@ TEST(TickCost, FinerMeshesAndLongerSubstepsAreCountedOnForMoreCgIterations) {
   ASSERT_TRUE(prepared.ok());
   const TickCost cost =
       PredictTickCost((*b)->model(), *prepared, Integrator::kImplicitEuler, 1e-3, k);
-  EXPECT_EQ(cost.cg_iterations,
-            EstimatedCgIterations(p, CgRefinementScale((*b)->model(), 1e-3 / cost.substeps)));
+  EXPECT_EQ(cost.cg_iterations, EstimatedCgIterations(p, sb));
   EXPECT_GT(cost.cg_iterations, 8);
 }
 
