@@ -16,8 +16,11 @@ double SignedTetVolume(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec
   return (p1 - p0).dot((p2 - p0).cross(p3 - p0)) / 6.0;
 }
 
-// Fills the edge -> element lists (model.h), or leaves them empty when some pair is not an edge.
-void FindElementEdges(Model& m) {
+}  // namespace
+
+// Fills the edge -> element lists (model.h), or leaves them empty when some pair is not an edge
+// and not between two fixed nodes.
+void IndexElementsByEdge(Model& m) {
   for (auto* v : {&m.edge_tet_start, &m.edge_tet, &m.edge_face_start, &m.edge_face}) v->clear();
   // (lower node, higher node, edge index), sorted for lookup whatever the order of m.edges.
   std::vector<std::array<int32_t, 3>> keys(m.edges.size());
@@ -43,8 +46,14 @@ void FindElementEdges(Model& m) {
     for (size_t t = 0; t < elems.size(); ++t) {
       for (size_t p = 0; p < pairs.size(); ++p) {
         int32_t flip = 0;
-        const int32_t k = find(elems[t][pairs[p][0]], elems[t][pairs[p][1]], flip);
-        if (k < 0) return false;
+        const int32_t a = elems[t][pairs[p][0]], b = elems[t][pairs[p][1]];
+        const int32_t k = find(a, b, flip);
+        if (k < 0) {
+          // The pair's block couples two fixed nodes only: rows and columns the implicit solve
+          // leaves out (a multi-rate patch's boundary, whose edges the patch does not carry).
+          if (!m.fixed.empty() && m.fixed[a] && m.fixed[b]) continue;
+          return false;
+        }
         const int32_t q = pairs[p][flip], r = pairs[p][1 - flip];  // at the edge's first node: q
         by_edge.push_back({k, static_cast<int32_t>(16 * t) + 4 * q + r});
       }
@@ -65,6 +74,8 @@ void FindElementEdges(Model& m) {
     for (auto* v : {&m.edge_tet_start, &m.edge_tet, &m.edge_face_start, &m.edge_face}) v->clear();
   }
 }
+
+namespace {
 
 // Finishes the geometric fields of a model whose nodes, masses, edges, faces and tets are set.
 Status FinishModel(Model& m) {
@@ -133,12 +144,12 @@ Status FinishModel(Model& m) {
     m.tet_min_height[k] = max_face > 0 ? 3.0 * std::abs(vol) / max_face : 0.0;
     m.tet_grad_floor[k] = static_cast<float>(min_face);
   }
-  FindElementEdges(m);
+  m.fixed.assign(n, 0);
+  IndexElementsByEdge(m);
   Eigen::AlignedBox3d box;
   for (const Vec3& p : m.rest_positions) box.extend(p);
   m.size = n > 0 ? box.diagonal().norm() : 0.0;
   m.inv_mass.resize(n);
-  m.fixed.assign(n, 0);
   for (int32_t i = 0; i < n; ++i) {
     if (!(m.mass[i] > 0.0) || !std::isfinite(m.mass[i])) {
       return InvalidArgument("node " + std::to_string(i) +

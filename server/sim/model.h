@@ -38,8 +38,10 @@ struct Model {
 
   // The tets and faces at each edge, for the assembled product of the implicit system (CSR: edge
   // k's entries are [start[k], start[k + 1])). An entry is 16 t + 4 q + r for element t whose
-  // corners q and r (0-3) are the edge's first and second node. All four empty when some pair of
-  // an element's nodes is not an edge (only in a model built from parts).
+  // corners q and r (0-3) are the edge's first and second node. A pair of fixed nodes that is not
+  // an edge has no entry (its block would only touch rows the solve leaves out); all four are
+  // empty when any other pair of an element's nodes is not an edge (only in a model built from
+  // parts). IndexElementsByEdge rebuilds them after `fixed` changes.
   std::vector<int32_t> edge_tet_start, edge_tet;
   std::vector<int32_t> edge_face_start, edge_face;
 
@@ -52,6 +54,11 @@ struct Model {
 /// out-of-range indices, non-finite positions, zero-length edges and empty meshes. Tets with
 /// negative orientation are flipped; the surface is taken from mesh.surface, or rebuilt when empty.
 Result<Model> BuildModel(const TetMesh& mesh, double density);
+
+/// Rebuilds the edge -> element lists (see edge_tet_start) from the model's elements, edges and
+/// fixed nodes: after a caller fixes nodes whose pairs are not all edges (a multi-rate patch's
+/// boundary). Allocates.
+void IndexElementsByEdge(Model& model);
 
 /// Builds a model from explicit parts (used for single-element tests): node masses are given
 /// directly and no tetrahedron is required.

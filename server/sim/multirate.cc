@@ -110,6 +110,11 @@ Result<Patch> Patch::Build(const SimObject& whole, const Vec3& center, const Pat
     model->fixed[l] = 1;
     model->inv_mass[l] = 0.0;
   }
+  // The boundary's edges are not the patch's, so its elements' pairs of boundary nodes are no
+  // edges: indexed again with the boundary fixed, the patch's product uses the assembled blocks
+  // instead of a pass over its elements per CG iteration (TetJacobian: 20 % of the loop's time
+  // in the daemon's 92.6k-tet press).
+  IndexElementsByEdge(*model);
   // The global volume condition (eq. 4) acts through the whole's volume: the patch's faces
   // enclose part of it, State::volume_offset (set by Follow) the rest, so the condition stays in
   // the patch's implicit system with the dent the patch makes.

@@ -10,6 +10,7 @@
 
 #include "common/tet_mesh_io.h"
 #include "sim/forces.h"
+#include "sim/multirate.h"
 #include "sim/primitives.h"
 #include "sim/sim.h"
 
@@ -295,6 +296,71 @@ TEST(ImplicitSystem, AssembledEdgeBlocksMatchTheElementProduct) {
     for (int32_t i = 0; i < n; ++i) diff = std::max(diff, (assembled[i] - direct[i]).norm());
     EXPECT_GT(diff, 1e-3 * scale);
   }
+}
+
+// A multi-rate patch carries only the edges at its inner nodes, so its tets' and faces' pairs of
+// boundary nodes are no edges of it. With its boundary fixed they are left out of the index (their
+// blocks touch only rows and columns the solve leaves out): the patch is assembled, and its
+// assembled product matches the element-wise one on every free row.
+TEST(ImplicitSystem, APatchIsAssembledAndMatchesTheElementProductOnItsFreeRows) {
+  auto mesh = MakeBoxTetMesh(6, 4, 4, Vec3(0.06, 0.04, 0.04));
+  ASSERT_TRUE(mesh.ok());
+  Parameters p = FindPreset("organ")->params;
+  p.area_k = 0.5;
+  auto whole = SimObject::Create(*mesh, p, Integrator::kImplicitEuler);
+  ASSERT_TRUE(whole.ok());
+  // The middle of the top.
+  Vec3 lo = (*whole)->positions()[0], hi = lo;
+  for (const Vec3& x : (*whole)->positions()) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  const Vec3 top(0.5 * (lo.x() + hi.x()), hi.y(), 0.5 * (lo.z() + hi.z()));
+  auto patch = Patch::Build(**whole, top, PatchOptions{0.015});
+  ASSERT_TRUE(patch.ok()) << patch.error().message;
+  const Model& pm = patch->object().model();
+  ASSERT_EQ(pm.edge_tet_start.size(), pm.edges.size() + 1) << "the patch has no element index";
+  EXPECT_LT(pm.edge_tet.size(), 6 * pm.tets.size()) << "no pair of boundary nodes was left out";
+  // The same parts with nothing fixed cannot be indexed: a free pair without its edge.
+  Model unfixed = pm;
+  std::fill(unfixed.fixed.begin(), unfixed.fixed.end(), uint8_t{0});
+  IndexElementsByEdge(unfixed);
+  EXPECT_TRUE(unfixed.edge_tet_start.empty());
+
+  State s;
+  InitState(pm, p.voigt_ratio, s);
+  const int32_t n = pm.num_nodes;
+  uint32_t seed = 777;
+  auto uniform = [&] {  // in [-1, 1)
+    seed = seed * 1664525u + 1013904223u;
+    return (seed >> 8) * (2.0 / 16777216.0) - 1.0;
+  };
+  for (int32_t i = 0; i < n; ++i) {
+    s.x[i] += 0.002 * Vec3(uniform(), uniform(), uniform());
+    s.v[i] = 0.1 * Vec3(uniform(), uniform(), uniform());
+  }
+  const internal::ActiveTerms terms = internal::DecideTerms(pm, p);
+  ASSERT_TRUE(terms.edges && terms.area && terms.tet_volume);
+  std::vector<Vec3> a(n), direct(n), assembled(n);
+  for (int32_t i = 0; i < n; ++i)
+    a[i] = pm.fixed[i] ? Vec3::Zero() : Vec3(uniform(), uniform(), uniform());
+  s.tet_split = false;
+  s.diag = pm.mass;
+  internal::ComputeForces(pm, p, terms, s, 1e-3, 0.0, terms);
+  internal::AssembleEdgeBlocks(pm, terms, s);
+  internal::ApplyJacobian(pm, terms, s, a, a, direct);
+  internal::ApplyAssembled(pm, terms, s, a, a, assembled);
+  double scale = 0.0, err = 0.0;
+  int32_t free_rows = 0;
+  for (int32_t i = 0; i < n; ++i) {
+    if (pm.fixed[i]) continue;
+    ++free_rows;
+    scale = std::max(scale, direct[i].norm());
+    err = std::max(err, (assembled[i] - direct[i]).norm());
+  }
+  ASSERT_GT(free_rows, 0);
+  ASSERT_GT(scale, 0.0);
+  EXPECT_LT(err, 1e-6 * scale);  // the blocks are stored in single precision
 }
 
 // The whole implicit step with the shape springs in the system, assembled onto the edges and
