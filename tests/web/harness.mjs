@@ -157,7 +157,14 @@ export async function openPage(
     if (m.type() === 'error') page.errors.push(m.text());
   });
   await page.goto(url);
-  await page.waitForFunction(() => window.rheo && window.rheo.stats().connected, null, { timeout: 20000 });
+  // Connected, and settled: the page publishes window.rheo.identity (null when signed out) last,
+  // once its panels are placed and their handlers attached. Connected alone came first on a
+  // loaded machine, and web.picture once chose its file before the studio listened for it.
+  await page.waitForFunction(
+    () => window.rheo && window.rheo.stats().connected && window.rheo.identity !== undefined,
+    null,
+    { timeout: 20000 },
+  );
   return page;
 }
 
