@@ -228,6 +228,23 @@ TEST(Terms, OffTermsAreSkipped) {
   EXPECT_TRUE(t.tet_volume && t.nonlinear_damper);
 }
 
+// A deterministic draw in [-1, 1) (a linear congruential generator).
+struct Uniform {
+  uint32_t seed;
+  double operator()() {
+    seed = seed * 1664525u + 1013904223u;
+    return (seed >> 8) * (2.0 / 16777216.0) - 1.0;
+  }
+};
+
+// Moves each of the first n nodes by up to 2 mm and gives it up to 0.1 m/s per axis.
+void Disturb(State& s, int32_t n, Uniform& uniform) {
+  for (int32_t i = 0; i < n; ++i) {
+    s.x[i] += 0.002 * Vec3(uniform(), uniform(), uniform());
+    s.v[i] = 0.1 * Vec3(uniform(), uniform(), uniform());
+  }
+}
+
 // The assembled product (shape springs' blocks moved onto the edges) against the element-wise
 // one, on a deformed, moving box with every term in the system; then with half the tets in it.
 TEST(ImplicitSystem, AssembledEdgeBlocksMatchTheElementProduct) {
@@ -245,15 +262,8 @@ TEST(ImplicitSystem, AssembledEdgeBlocksMatchTheElementProduct) {
   const size_t groups = (m->edges.size() + internal::kEdgeBlock - 1) / internal::kEdgeBlock;
   ASSERT_EQ(s.edge_block.size(), 9 * internal::kEdgeBlock * groups);
   const int32_t n = m->num_nodes;
-  uint32_t seed = 12345;
-  auto uniform = [&] {  // in [-1, 1)
-    seed = seed * 1664525u + 1013904223u;
-    return (seed >> 8) * (2.0 / 16777216.0) - 1.0;
-  };
-  for (int32_t i = 0; i < n; ++i) {
-    s.x[i] += 0.002 * Vec3(uniform(), uniform(), uniform());
-    s.v[i] = 0.1 * Vec3(uniform(), uniform(), uniform());
-  }
+  Uniform uniform{12345};
+  Disturb(s, n, uniform);
   const internal::ActiveTerms terms = internal::DecideTerms(*m, p);
   ASSERT_TRUE(terms.edges && terms.area && terms.tet_volume && terms.global_volume);
   std::vector<Vec3> a(n), direct(n), assembled(n);
@@ -330,15 +340,8 @@ TEST(ImplicitSystem, APatchIsAssembledAndMatchesTheElementProductOnItsFreeRows) 
   State s;
   InitState(pm, p.voigt_ratio, s);
   const int32_t n = pm.num_nodes;
-  uint32_t seed = 777;
-  auto uniform = [&] {  // in [-1, 1)
-    seed = seed * 1664525u + 1013904223u;
-    return (seed >> 8) * (2.0 / 16777216.0) - 1.0;
-  };
-  for (int32_t i = 0; i < n; ++i) {
-    s.x[i] += 0.002 * Vec3(uniform(), uniform(), uniform());
-    s.v[i] = 0.1 * Vec3(uniform(), uniform(), uniform());
-  }
+  Uniform uniform{777};
+  Disturb(s, n, uniform);
   const internal::ActiveTerms terms = internal::DecideTerms(pm, p);
   ASSERT_TRUE(terms.edges && terms.area && terms.tet_volume);
   std::vector<Vec3> a(n), direct(n), assembled(n);
