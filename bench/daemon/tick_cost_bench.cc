@@ -39,9 +39,9 @@ double Median(std::vector<double> v) {
 
 // Steps `object` by `dt` `warmup` + `steps` times while the nodes within 1 cm of its top are
 // pressed down with 3 N ramped over the first 20 ms; the median of the last `steps` step times,
-// and the CG iterations per substep and the substeps per step they took.
+// and the CG iterations per substep they took.
 struct Measured {
-  double median_us = 0.0, cg_per_substep = 0.0, substeps = 0.0;
+  double median_us = 0.0, cg_per_substep = 0.0;
 };
 Measured Press(sim::SimObject& object, double dt, int warmup, int steps) {
   std::vector<int32_t> top;
@@ -68,7 +68,6 @@ Measured Press(sim::SimObject& object, double dt, int warmup, int steps) {
   Measured m;
   m.median_us = Median(us);
   m.cg_per_substep = substeps > 0 ? iterations / substeps : 0.0;
-  m.substeps = substeps / steps;
   return m;
 }
 
@@ -98,10 +97,7 @@ int main(int argc, char** argv) {
       c.explicit_ns, c.implicit_ns, c.cg_ns, c.system_ns, c.system_cg_ns);
   // The model's implicit time [us] with `cg` iterations per substep instead of its estimate.
   auto model_at = [&](const sim::TickCost& cost, double cg) {
-    return cost.substeps *
-           (static_cast<double>(cost.elements) * (c.implicit_ns + cg * c.cg_ns) +
-            static_cast<double>(cost.system_tets) * (c.system_ns + cg * c.system_cg_ns)) *
-           1e-3;
+    return sim::ImplicitTickNs(cost, cg, c) * 1e-3;
   };
   std::printf(
       "# %d ticks per row, medians; 'model at measured CG' counts the iterations the "

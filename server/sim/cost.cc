@@ -43,6 +43,13 @@ double CgRefinementScale(const Model& model) {
                            std::pow(across / kReferenceEdgesAcross, kRefinementExponent));
 }
 
+double ImplicitTickNs(const TickCost& cost, double cg, const CostCoefficients& c) {
+  const double n = static_cast<double>(cost.elements);
+  const double t = static_cast<double>(cost.system_tets);
+  return cost.substeps *
+         (n * (c.implicit_ns + cg * c.cg_ns) + t * (c.system_ns + cg * c.system_cg_ns));
+}
+
 TickCost PredictTickCost(const Model& model, const PreparedParameters& prepared,
                          Integrator integrator, double dt, const CostCoefficients& c) {
   const Parameters& p = prepared.params;
@@ -60,9 +67,7 @@ TickCost PredictTickCost(const Model& model, const PreparedParameters& prepared,
     out.substeps = SimObject::ImplicitSubsteps(p, dt);
     out.cg_iterations = EstimatedCgIterations(p, CgRefinementScale(model));
     out.system_tets = prepared.implicit_tets;
-    const double t = static_cast<double>(out.system_tets);
-    out.ns = out.substeps * (n * (c.implicit_ns + out.cg_iterations * c.cg_ns) +
-                             t * (c.system_ns + out.cg_iterations * c.system_cg_ns));
+    out.ns = ImplicitTickNs(out, out.cg_iterations, c);
   }
   return out;
 }

@@ -56,6 +56,11 @@ int32_t EstimatedCgIterations(const Parameters& params, double refinement = 1.0)
 /// coarse meshes keep the 8 (about 10 across and fewer).
 double CgRefinementScale(const Model& model);
 
+/// The implicit integrator's time of one awake tick [ns] for `cost`'s substeps, elements and
+/// system tetrahedra, at `cg_iterations` per substep (PredictTickCost's estimate, or a count
+/// measured elsewhere).
+double ImplicitTickNs(const TickCost& cost, double cg_iterations, const CostCoefficients& c);
+
 /// The cost of one awake tick of `dt` [s] for an object of `model` stepped with `prepared`
 /// (from SimObject::Prepare) and `integrator`.
 TickCost PredictTickCost(const Model& model, const PreparedParameters& prepared,

@@ -48,7 +48,6 @@ run('web.roles', async ({ daemon, browser }) => {
 
   // The viewer's page at the studio's address: watch-only.
   const viewer = await openPage(browser, `${daemon.url}/`, { token: created.token });
-  await viewer.waitForFunction(() => window.rheo.identity !== undefined, null, { timeout: 10000 });
   assert(await viewer.evaluate(() => window.rheo.viewOnly), 'a viewer token gets the watch-only page');
   assert((await viewer.locator('#mode').textContent()) === 'viewer', 'the mode says viewer');
   assert((await viewer.locator('#who').textContent()) === 'vera (viewer)', 'the page says who it is');
