@@ -6,7 +6,10 @@
 // (the FrameService path: hub snapshot -> Frame message with positions -> serialised) at 60 Hz
 // plus a mesh job (sketch -> solid, fine resolution) running back to back.
 //
-//   device_loop_bench [--seconds S] [--sketch FILE] [--set NAME=VALUE ...]
+//   device_loop_bench [--seconds S] [--sketch FILE] [--tets N ...] [--no-floor]
+//                     [--set NAME=VALUE ...]
+// --tets N: an object size to run (repeat for several; default 1250 and 5000); --no-floor skips
+// the empty-tick scenarios (e.g. to profile one size alone).
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -254,7 +257,18 @@ int RunScenario(const std::string& strokes, const StoredObject& obj, bool loaded
 int main(int argc, char** argv) {
   double seconds = 5.0;
   std::string sketch = std::string(RHEO_SKETCHES) + "/bean.json";
+  std::vector<size_t> sizes;
+  bool floor = true;
   for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--no-floor")) floor = false;
+    if (!std::strcmp(argv[i], "--tets") && i + 1 < argc) {
+      const long n = std::atol(argv[++i]);
+      if (n <= 0) {
+        std::fprintf(stderr, "--tets expects a positive count, got '%s'\n", argv[i]);
+        return 1;
+      }
+      sizes.push_back(static_cast<size_t>(n));
+    }
     if (!std::strcmp(argv[i], "--seconds") && i + 1 < argc) seconds = std::atof(argv[++i]);
     if (!std::strcmp(argv[i], "--sketch") && i + 1 < argc) sketch = argv[++i];
     if (!std::strcmp(argv[i], "--set") && i + 1 < argc) {
@@ -283,12 +297,14 @@ int main(int argc, char** argv) {
   std::printf("| %-26s | %5s | %35s | %35s | %6s %6s %7s | %5s %4s %4s | %4s | %4s %3s |\n",
               "scenario", "tets", "period p50 / p99 / p99.9 / max", "work p50 / p99 / p99.9 / max",
               "late", "overr", "skipped", "miss", "trip", "err", "cont", "frms", "job");
+  if (sizes.empty()) sizes = {1250, 5000};
   for (bool loaded : {false, true}) {
+    if (!floor) break;
     if (RunFloor(strokes, loaded, seconds,
                  std::string("empty tick (floor), ") + (loaded ? "loaded" : "idle")) != 0)
       return 1;
   }
-  for (size_t target : {size_t{1250}, size_t{5000}}) {
+  for (size_t target : sizes) {
     auto obj = BuildNear(strokes, target);
     if (!obj.ok()) {
       std::fprintf(stderr, "build: %s\n", obj.error().message.c_str());
