@@ -163,6 +163,13 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
   EXPECT_GT(mr.multi_rate().patch_inner_nodes(), 0u);
   EXPECT_LE(mr.multi_rate().patch_inner_nodes(), 64u);
   EXPECT_GT(mr.multi_rate().predicted_whole_step_ms(), 0.0);
+  // A whole predicted over its period at the tick's substeps takes 2 ms ones (5 a step), and
+  // falls behind less. Predicted over the period even at 2 ms, it was over it at 1 ms.
+  const uint32_t whole_substeps = mr.multi_rate().whole_substeps();
+  if (mr.multi_rate().predicted_whole_step_ms() > 10.0)
+    EXPECT_EQ(whole_substeps, 5u) << mr.multi_rate().DebugString();
+  else
+    EXPECT_TRUE(whole_substeps == 5u || whole_substeps == 10u) << mr.multi_rate().DebugString();
   EXPECT_LT(mr.predicted_tick_us() + so.predicted_tick_us(), Status(d).loop().sim_budget_us());
   // A second one is refused: each whole takes a core.
   v1::SceneObject second;
@@ -194,6 +201,32 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
     }
     EXPECT_FALSE(o.unstable());
   }
+
+  // A whole that keeps up at the tick's substeps keeps them: the default bean (about 0.5 ms a
+  // tick, so about 5 ms a 10-tick step), asked to run multi-rate, in place of the fine one.
+  {
+    grpc::ClientContext rctx;
+    SetDeadline(rctx);
+    v1::RemoveFromSceneRequest rm;
+    rm.set_instance_id(mr.instance_id());
+    v1::RemoveFromSceneResponse rr;
+    ASSERT_TRUE(scene->RemoveFromScene(&rctx, rm, &rr).ok());
+  }
+  v1::SceneObject coarse;
+  s = Add(d, id, v1::INTEGRATOR_IMPLICIT, {}, &coarse, v1::MULTI_RATE_MODE_ON);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  ASSERT_TRUE(coarse.has_multi_rate());
+  const v1::MultiRate& cm = coarse.multi_rate();
+  std::printf("multi-rate default bean: %s\n", cm.ShortDebugString().c_str());
+  // 10 substeps (1 ms) predicted within the period; or 5 (2 ms) because 10 were predicted over
+  // it, and 5 cost at least half of that.
+  if (cm.whole_substeps() == 10u)
+    EXPECT_LE(cm.predicted_whole_step_ms(), 10.0) << cm.DebugString();
+  else
+    EXPECT_TRUE(cm.whole_substeps() == 5u && cm.predicted_whole_step_ms() > 5.0)
+        << cm.DebugString();
+  // Predicted at about 2.4 ms a step in this build: within its period, so it keeps them.
+  EXPECT_EQ(cm.whole_substeps(), 10u) << cm.DebugString();
 }
 
 // The daemon's resident memory [kB] (VmRSS of /proc/PID/status; 0 when unreadable).

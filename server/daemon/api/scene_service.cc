@@ -36,6 +36,16 @@ constexpr LoopRange kLoopRanges[] = {
 // the hand force within 0.27-0.44 N RMS of the full solve's at 4.6k tets
 // (bench/sim/results/multirate.txt, N = 10).
 constexpr int32_t kMultiRatePeriod = 10;
+// The substep of a whole that would run behind real time at the loop's tick: fewer, longer
+// substeps, so that it falls behind less. With the floor in the implicit solve, the 15.4k-tet
+// bean dropped 2 cm onto the floor restored 0 times in 0.6 s at 1, 2 and 2.5 ms substeps with
+// each of hard-jelly, soft-jelly and organ (hard-jelly restored once at 5 ms); its peak
+// compression at 2 ms is 3-8 % over 1 ms's (`rheo simulate --dt 0.01 --set
+// implicit_substeps=5`). BDF2 at 2 ms ticks costs 0.60-0.88 of 1 ms's CPU per simulated second
+// at 4.6k and 21.6k tets, shape error 0.12-0.67 % (bench/sim/results/precision_sizes.txt).
+// Before the floor joined the solve, 2 and 2.5 ms substeps restored 51-52 times in that drop.
+// A step that has to be restored doubles the substeps (MultiRateObject), as at any substep.
+constexpr double kBehindWholeSubstep = 2e-3;
 // Each multi-rate object's whole steps on a thread of its own.
 constexpr int kMaxMultiRateObjects = 1;
 
@@ -262,11 +272,9 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
     const double tick = TickSeconds(ctx_);
     sim::PatchOptions po;
     po.tick = tick;
-    // The whole's substeps are the loop's own tick, the step every preset is tuned for: dropped
-    // onto the floor, the 15k-tet bean's whole restored 51 times in 0.6 s with 2 ms substeps
-    // (hard-jelly; 0 with 1 ms), 52 with 2.5 ms (soft-jelly; 0 with 2 ms). So the whole costs
-    // what the full solve would, on a core of its own, and runs behind real time when that is
-    // more than the tick (MultiRate.whole_lag_ms).
+    // The whole's substeps are the loop's own tick, the step every preset is tuned for, when the
+    // whole keeps up with real time at it; otherwise kBehindWholeSubstep (chosen below, once
+    // the whole's step is predicted).
     po.whole_substep = tick;
     const Vec3 focus = PressPoint(triangles, object->positions());
     auto patch = sim::Patch::Build(*object, focus, po);
@@ -282,12 +290,22 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
       return ToGrpc(s.error());
     // The whole's step over the period, with the substeps MultiRate gives it.
     const double period_s = kMultiRatePeriod * tick;
-    const sim::Parameters wp =
-        sim::MultiRate::WholeParameters(object->parameters(), kMultiRatePeriod, po);
-    auto whole_prepared = object->Prepare(wp, integrator, period_s);
-    if (!whole_prepared.ok()) return ToGrpc(whole_prepared.error());
-    whole_cost = sim::PredictTickCost(object->model(), *whole_prepared, integrator, period_s,
-                                      ctx_.tick_cost);
+    auto predict_whole = [&]() -> Result<sim::TickCost> {
+      const sim::Parameters wp =
+          sim::MultiRate::WholeParameters(object->parameters(), kMultiRatePeriod, po);
+      auto whole_prepared = object->Prepare(wp, integrator, period_s);
+      if (!whole_prepared.ok()) return whole_prepared.error();
+      return sim::PredictTickCost(object->model(), *whole_prepared, integrator, period_s,
+                                  ctx_.tick_cost);
+    };
+    auto predicted = predict_whole();
+    if (!predicted.ok()) return ToGrpc(predicted.error());
+    if (predicted->ns > period_s * 1e9 && kBehindWholeSubstep > tick) {
+      po.whole_substep = kBehindWholeSubstep;
+      predicted = predict_whole();
+      if (!predicted.ok()) return ToGrpc(predicted.error());
+    }
+    whole_cost = *predicted;
     auto created_mr = MultiRateObject::Create(std::move(object), kMultiRatePeriod, po, focus);
     if (!created_mr.ok()) return ToGrpc(created_mr.error());
     multirate = std::move(created_mr).value();
