@@ -202,8 +202,8 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
     EXPECT_FALSE(o.unstable());
   }
 
-  // A whole that keeps up at the tick's substeps keeps them: the default bean (about 0.5 ms a
-  // tick, so about 5 ms a 10-tick step), asked to run multi-rate, in place of the fine one.
+  // A whole that keeps up at the tick's substeps keeps them: the default bean, asked to run
+  // multi-rate in place of the fine one.
   {
     grpc::ClientContext rctx;
     SetDeadline(rctx);
