@@ -53,7 +53,9 @@ void WriteSvg(const std::vector<Point>& pts, const std::string& path,
   f << "<line x1='" << X(0.01) << "' y1='" << T << "' x2='" << X(0.01) << "' y2='" << H - B
     << "' stroke='red' stroke-dasharray='4'/>\n";
   f << "<text x='" << (L + W - R) / 2 - 100 << "' y='" << H - 20 << "'>" << xlabel << "</text>\n";
-  f << "<text x='15' y='" << T + 10 << "'>CPU s per simulated s</text>\n";
+  // Vertical, beside the tick labels (across the top it ran into the "1e2" label).
+  f << "<text transform='translate(20," << (T + H - B) / 2
+    << ") rotate(-90)' text-anchor='middle'>CPU s per simulated s</text>\n";
   const char* colors[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd",
                           "#ff7f0e", "#8c564b", "#e377c2", "#17becf"};
   std::vector<std::string> series;
