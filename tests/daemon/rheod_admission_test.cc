@@ -218,14 +218,8 @@ TEST(RheodAdmission, StarvingSettingsAndAnOversizedObjectAreRefusedWhileTheLoopK
   ASSERT_TRUE(coarse.has_multi_rate());
   const v1::MultiRate& cm = coarse.multi_rate();
   std::printf("multi-rate default bean: %s\n", cm.ShortDebugString().c_str());
-  // 10 substeps (1 ms) predicted within the period; or 5 (2 ms) because 10 were predicted over
-  // it, and 5 cost at least half of that.
-  if (cm.whole_substeps() == 10u)
-    EXPECT_LE(cm.predicted_whole_step_ms(), 10.0) << cm.DebugString();
-  else
-    EXPECT_TRUE(cm.whole_substeps() == 5u && cm.predicted_whole_step_ms() > 5.0)
-        << cm.DebugString();
-  // Predicted at about 2.4 ms a step in this build: within its period, so it keeps them.
+  // Predicted at about 2.4 ms a step in this build: within its period, so it keeps the tick's.
+  EXPECT_LE(cm.predicted_whole_step_ms(), 10.0) << cm.DebugString();
   EXPECT_EQ(cm.whole_substeps(), 10u) << cm.DebugString();
 }
 
