@@ -172,7 +172,7 @@ int main(int argc, char** argv) {
   const int whole_steps = std::max(5, ticks / kPeriod);
   std::printf(
       "# samples/%s.json, three presets, implicit, pressed with 3 N; 'full tick' = one 1 ms tick; "
-      "'whole/%d' = the multi-rate whole's step over %d ticks (1 ms substeps), %d steps\n",
+      "'whole/%d' = the multi-rate whole's step over %d ticks (1 ms substeps, or 2 ms), %d steps\n",
       sample.c_str(), kPeriod, kPeriod, whole_steps);
   for (const char* preset : {"organ", "hard-jelly", "soft-jelly"})
     for (const TetMesh& mesh : meshes->meshes) {
@@ -180,7 +180,9 @@ int main(int argc, char** argv) {
       p.sleep_time = 0.0;
       sim::PatchOptions po;
       po.tick = kDt;
-      po.whole_substep = kDt;  // as rheod sets it
+      po.whole_substep = kDt;  // as rheod sets it for a whole that keeps up
+      sim::PatchOptions behind = po;
+      behind.whole_substep = 2e-3;  // ... and for one that would not (scene_service.cc)
       struct Case {
         std::string name;
         sim::Parameters params;
@@ -191,6 +193,8 @@ int main(int argc, char** argv) {
           {std::string(preset) + ", full tick", p, kDt, ticks},
           {std::string(preset) + ", whole/10", sim::MultiRate::WholeParameters(p, kPeriod, po),
            kPeriod * kDt, whole_steps},
+          {std::string(preset) + ", whole/10, 2 ms substeps",
+           sim::MultiRate::WholeParameters(p, kPeriod, behind), kPeriod * kDt, whole_steps},
       };
       for (const Case& cs : cases) {
         auto object = sim::SimObject::Create(mesh, cs.params, sim::Integrator::kImplicitEuler);

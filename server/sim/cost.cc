@@ -16,6 +16,9 @@ constexpr double kDefaultTolerance = 5e-3;
 constexpr double kReferenceEdgesAcross = 17.4;
 constexpr double kIterationsAtReference = 12.0;
 constexpr double kRefinementExponent = 0.75;
+// The substep those iterations were counted at, and how they grow beyond it (CgSubstepScale).
+constexpr double kCountedSubstep = 1e-3;
+constexpr double kSubstepExponent = 0.5;
 
 }  // namespace
 
@@ -43,6 +46,11 @@ double CgRefinementScale(const Model& model) {
                            std::pow(across / kReferenceEdgesAcross, kRefinementExponent));
 }
 
+double CgSubstepScale(double substep) {
+  if (!(substep > kCountedSubstep)) return 1.0;
+  return std::pow(substep / kCountedSubstep, kSubstepExponent);
+}
+
 double ImplicitTickNs(const TickCost& cost, double cg, const CostCoefficients& c) {
   const double n = static_cast<double>(cost.elements);
   const double t = static_cast<double>(cost.system_tets);
@@ -65,7 +73,8 @@ TickCost PredictTickCost(const Model& model, const PreparedParameters& prepared,
     out.ns = out.substeps * n * c.explicit_ns;
   } else {
     out.substeps = SimObject::ImplicitSubsteps(p, dt);
-    out.cg_iterations = EstimatedCgIterations(p, CgRefinementScale(model));
+    out.cg_iterations = EstimatedCgIterations(
+        p, CgRefinementScale(model) * CgSubstepScale(dt / out.substeps));
     out.system_tets = prepared.implicit_tets;
     out.ns = ImplicitTickNs(out, out.cg_iterations, c);
   }

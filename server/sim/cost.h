@@ -56,6 +56,13 @@ int32_t EstimatedCgIterations(const Parameters& params, double refinement = 1.0)
 /// coarse meshes keep the 8 (about 10 across and fewer).
 double CgRefinementScale(const Model& model);
 
+/// The factor on the CG iterations for substeps longer than the 1 ms the model was fitted at:
+/// sqrt(substep / 1 ms), 1 at 1 ms and below. The pressed bean's multi-rate whole took 1.1-1.6x
+/// the iterations the model counts on at 1 ms in 2 ms substeps (tick_cost_bench, 4.6k and 21.6k
+/// tets, three presets; against 0.6-0.8x at 1 ms), as the dampers' share h D / M of the system
+/// doubles.
+double CgSubstepScale(double substep);
+
 /// The implicit integrator's time of one awake tick [ns] for `cost`'s substeps, elements and
 /// system tetrahedra, at `cg_iterations` per substep (PredictTickCost's estimate, or a count
 /// measured elsewhere).

@@ -101,5 +101,35 @@ TEST(TickCost, FinerMeshesAreCountedOnForMoreCgIterations) {
   EXPECT_GT(cost.cg_iterations, 8);
 }
 
+TEST(TickCost, LongerSubstepsAreCountedOnForMoreCgIterations) {
+  EXPECT_EQ(CgSubstepScale(0.5e-3), 1.0);
+  EXPECT_EQ(CgSubstepScale(1e-3), 1.0);
+  EXPECT_NEAR(CgSubstepScale(2e-3), std::sqrt(2.0), 1e-12);
+  EXPECT_NEAR(CgSubstepScale(4e-3), 2.0, 1e-12);
+  // A 10 ms step in 1 ms substeps and in 2 ms ones (as a multi-rate whole takes them): the 2 ms
+  // substeps are counted on for sqrt(2) times the iterations.
+  auto mesh = MakeBoxTetMesh(4, 3, 3, Vec3(0.05, 0.04, 0.04));
+  ASSERT_TRUE(mesh.ok());
+  Parameters p = FindPreset("organ")->params;
+  auto object = SimObject::Create(*mesh, p, Integrator::kImplicitEuler);
+  ASSERT_TRUE(object.ok());
+  CostCoefficients k;
+  k.implicit_ns = 10.0;
+  k.cg_ns = 2.0;
+  TickCost at[2];
+  for (int i = 0; i < 2; ++i) {
+    p.implicit_substeps = i == 0 ? 10 : 5;
+    auto prepared = (*object)->Prepare(p, Integrator::kImplicitEuler, 10e-3);
+    ASSERT_TRUE(prepared.ok());
+    at[i] = PredictTickCost((*object)->model(), *prepared, Integrator::kImplicitEuler, 10e-3, k);
+  }
+  ASSERT_EQ(at[0].substeps, 10);
+  ASSERT_EQ(at[1].substeps, 5);
+  const double refinement = CgRefinementScale((*object)->model());
+  EXPECT_EQ(at[0].cg_iterations, EstimatedCgIterations(p, refinement));
+  EXPECT_EQ(at[1].cg_iterations, EstimatedCgIterations(p, refinement * std::sqrt(2.0)));
+  EXPECT_GT(at[1].cg_iterations, at[0].cg_iterations);
+}
+
 }  // namespace
 }  // namespace rheo::sim
