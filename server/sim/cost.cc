@@ -73,8 +73,8 @@ TickCost PredictTickCost(const Model& model, const PreparedParameters& prepared,
     out.ns = out.substeps * n * c.explicit_ns;
   } else {
     out.substeps = SimObject::ImplicitSubsteps(p, dt);
-    out.cg_iterations = EstimatedCgIterations(
-        p, CgRefinementScale(model) * CgSubstepScale(dt / out.substeps));
+    out.cg_iterations =
+        EstimatedCgIterations(p, CgRefinementScale(model) * CgSubstepScale(dt / out.substeps));
     out.system_tets = prepared.implicit_tets;
     out.ns = ImplicitTickNs(out, out.cg_iterations, c);
   }
