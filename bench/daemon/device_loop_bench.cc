@@ -299,9 +299,8 @@ int main(int argc, char** argv) {
               "late", "overr", "skipped", "miss", "trip", "err", "cont", "frms", "job");
   if (sizes.empty()) sizes = {1250, 5000};
   for (bool loaded : {false, true}) {
-    if (!floor) break;
-    if (RunFloor(strokes, loaded, seconds,
-                 std::string("empty tick (floor), ") + (loaded ? "loaded" : "idle")) != 0)
+    if (floor && RunFloor(strokes, loaded, seconds,
+                          std::string("empty tick (floor), ") + (loaded ? "loaded" : "idle")) != 0)
       return 1;
   }
   for (size_t target : sizes) {

@@ -182,7 +182,7 @@ int main(int argc, char** argv) {
       po.tick = kDt;
       po.whole_substep = kDt;  // as rheod sets it for a whole that keeps up
       sim::PatchOptions behind = po;
-      behind.whole_substep = 2e-3;  // ... and for one that would not (scene_service.cc)
+      behind.whole_substep = sim::kBehindWholeSubstep;  // ... and for one that would not
       struct Case {
         std::string name;
         sim::Parameters params;

@@ -29,6 +29,18 @@
 
 namespace rheo::sim {
 
+/// The substep of a whole that would run behind real time at the loop's tick: fewer, longer
+/// substeps, so that it falls behind less. With the floor in the implicit solve, the 15.4k-tet
+/// bean dropped 2 cm onto the floor restored 0 times in 0.6 s at 1, 2 and 2.5 ms substeps with
+/// each of hard-jelly, soft-jelly and organ (hard-jelly restored once at 5 ms); its peak
+/// compression at 2 ms is 3-8 % over 1 ms's (`rheo simulate --dt 0.01 --set
+/// implicit_substeps=5`). BDF2 at 2 ms ticks costs 0.60-0.88 of 1 ms's CPU per simulated second
+/// at 4.6k and 21.6k tets, shape error 0.12-0.67 % (bench/sim/results/precision_sizes.txt).
+/// Before the floor joined the solve, 2 and 2.5 ms substeps restored 51-52 times in that drop.
+/// A step that has to be restored doubles the substeps (rheod's MultiRateObject), as at any
+/// substep. rheod takes it for such a whole; tick_cost_bench measures it.
+constexpr double kBehindWholeSubstep = 2e-3;
+
 struct PatchOptions {
   double radius = 0.015;  ///< inner nodes lie within this distance of the centre [m], (0, 1]
   double tick = 1e-3;     ///< the patch's tick [s], (0, 0.1]: its BDF2 history is made for it

@@ -36,16 +36,6 @@ constexpr LoopRange kLoopRanges[] = {
 // the hand force within 0.27-0.44 N RMS of the full solve's at 4.6k tets
 // (bench/sim/results/multirate.txt, N = 10).
 constexpr int32_t kMultiRatePeriod = 10;
-// The substep of a whole that would run behind real time at the loop's tick: fewer, longer
-// substeps, so that it falls behind less. With the floor in the implicit solve, the 15.4k-tet
-// bean dropped 2 cm onto the floor restored 0 times in 0.6 s at 1, 2 and 2.5 ms substeps with
-// each of hard-jelly, soft-jelly and organ (hard-jelly restored once at 5 ms); its peak
-// compression at 2 ms is 3-8 % over 1 ms's (`rheo simulate --dt 0.01 --set
-// implicit_substeps=5`). BDF2 at 2 ms ticks costs 0.60-0.88 of 1 ms's CPU per simulated second
-// at 4.6k and 21.6k tets, shape error 0.12-0.67 % (bench/sim/results/precision_sizes.txt).
-// Before the floor joined the solve, 2 and 2.5 ms substeps restored 51-52 times in that drop.
-// A step that has to be restored doubles the substeps (MultiRateObject), as at any substep.
-constexpr double kBehindWholeSubstep = 2e-3;
 // Each multi-rate object's whole steps on a thread of its own.
 constexpr int kMaxMultiRateObjects = 1;
 
@@ -273,7 +263,7 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
     sim::PatchOptions po;
     po.tick = tick;
     // The whole's substeps are the loop's own tick, the step every preset is tuned for, when the
-    // whole keeps up with real time at it; otherwise kBehindWholeSubstep (chosen below, once
+    // whole keeps up with real time at it; otherwise sim::kBehindWholeSubstep (chosen below, once
     // the whole's step is predicted).
     po.whole_substep = tick;
     const Vec3 focus = PressPoint(triangles, object->positions());
@@ -300,8 +290,8 @@ grpc::Status AddObjectToScene(const DaemonContext& ctx_, const v1::AddToSceneReq
     };
     auto predicted = predict_whole();
     if (!predicted.ok()) return ToGrpc(predicted.error());
-    if (predicted->ns > period_s * 1e9 && kBehindWholeSubstep > tick) {
-      po.whole_substep = kBehindWholeSubstep;
+    if (predicted->ns > period_s * 1e9 && sim::kBehindWholeSubstep > tick) {
+      po.whole_substep = sim::kBehindWholeSubstep;
       predicted = predict_whole();
       if (!predicted.ok()) return ToGrpc(predicted.error());
     }
