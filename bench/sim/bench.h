@@ -70,6 +70,11 @@ struct RunResult {
   std::vector<double> tick_us;  // each tick's CPU time [us]
 };
 
+// The scene's pressed nodes (those within 1 cm of the top), and the press at tick k of dt: the
+// scene's force ramped over 0.1 s, shared among them (nothing in a drop).
+std::vector<int32_t> TopNodes(const SimObject& s);
+void ApplyPress(SimObject& s, const Scene& sc, std::span<const int32_t> top, int64_t k, double dt);
+
 RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_end,
                    double cg_tol = -1.0);
 
@@ -89,6 +94,8 @@ int Budget(const std::string& sample, int max_tets);     // budget.cc
 int MultiRate(const std::string& sample, int max_tets);  // multirate.cc
 // Work-precision at each size of a sample (precision.cc): a table and one SVG per size.
 int PrecisionSizes(const std::string& sample, int max_tets, const std::string& svg_prefix);
+int Trace(const std::string& sample, int max_tets, const std::string& scene,
+          std::span<char* const> sets);
 #ifdef RHEO_HAVE_BULLET
 int Bullet();       // bullet.cc
 int BulletCheck();  // bullet.cc

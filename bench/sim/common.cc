@@ -51,6 +51,21 @@ std::vector<Scene> Scenes() {
   return out;
 }
 
+std::vector<int32_t> TopNodes(const SimObject& s) {
+  std::vector<int32_t> top;
+  double y_max = -1e30;
+  for (const Vec3& x : s.positions()) y_max = std::max(y_max, x.y());
+  for (int32_t i = 0; i < s.model().num_nodes; ++i)
+    if (s.positions()[i].y() > y_max - 0.01) top.push_back(i);
+  return top;
+}
+
+void ApplyPress(SimObject& s, const Scene& sc, std::span<const int32_t> top, int64_t k, double dt) {
+  if (!(sc.press_force > 0) || top.empty()) return;
+  const double ramp = std::min(1.0, (k * dt) / 0.1);
+  for (int32_t i : top) s.SetExternalForce(i, Vec3(0, -ramp * sc.press_force / top.size(), 0));
+}
+
 RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_end, double cg_tol) {
   const Integrator integ = method.integrator;
   Parameters p = sc.params;
@@ -60,20 +75,12 @@ RunResult RunScene(const Scene& sc, const Method& method, double dt, double t_en
   auto obj = SimObject::Create(sc.mesh, p, integ);
   SimObject& s = **obj;
   s.Translate(Vec3(0, sc.drop, 0));
-  std::vector<int32_t> top;
-  double y_max = -1e30;
-  for (const Vec3& x : s.positions()) y_max = std::max(y_max, x.y());
-  for (int32_t i = 0; i < s.model().num_nodes; ++i) {
-    if (s.positions()[i].y() > y_max - 0.01) top.push_back(i);
-  }
+  const std::vector<int32_t> top = TopNodes(s);
   RunResult r;
   const int64_t ticks = std::llround(t_end / dt);
   const double t0 = CpuSeconds();
   for (int64_t k = 0; k < ticks; ++k) {
-    if (sc.press_force > 0) {
-      const double ramp = std::min(1.0, (k * dt) / 0.1);
-      for (int32_t i : top) s.SetExternalForce(i, Vec3(0, -ramp * sc.press_force / top.size(), 0));
-    }
+    ApplyPress(s, sc, top, k, dt);
     const double c0 = CpuSeconds();
     const StepResult st = s.Step(dt);
     r.tick_us.push_back((CpuSeconds() - c0) * 1e6);

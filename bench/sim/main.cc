@@ -13,9 +13,13 @@
 //   sim_bench budget [sample] [max_tets]  the implicit step's solver settings (preconditioner,
 //                                    kept blocks, iteration cap, tolerance): tick median and tail
 //                                    beside the error against a fine-tick reference, per size
+//   sim_bench trace [sample] [max_tets] [drop|press] [name=value...]  per 10 ms of the
+//   precision-sizes scene
+//                                    (BDF2, 1 ms): CPU, CG iterations, system, floor contact
 //   sim_bench multirate [sample] [max_tets]  a press through the renderer: the multi-rate scheme
 //                                    (patch every tick, whole every N) against the full solve
 // One thread throughout (the library has none).
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -41,6 +45,10 @@ int main(int argc, char** argv) {
   if (mode == "precision-sizes")
     return PrecisionSizes(argc > 2 ? argv[2] : "bean", argc > 3 ? std::atoi(argv[3]) : 100000,
                           argc > 4 ? argv[4] : "sim_work_precision");
+  if (mode == "trace")
+    return Trace(argc > 2 ? argv[2] : "bean", argc > 3 ? std::atoi(argv[3]) : 20000,
+                 argc > 4 ? argv[4] : "drop",
+                 std::span<char* const>(argv + std::min(argc, 5), argv + argc));
   if (mode == "precision") return Precision(argc > 2 ? argv[2] : "sim_work_precision.svg");
 #ifdef RHEO_HAVE_BULLET
   if (mode == "bullet") return Bullet();
@@ -56,6 +64,7 @@ int main(int argc, char** argv) {
                "precision [svg] | "
                "cg | params | bullet | sketched [sample] [max_tets] | budget [sample] [max_tets] | "
                "multirate [sample] [max_tets] | "
-               "precision-sizes [sample] [max_tets] [svg_prefix]\n");
+               "precision-sizes [sample] [max_tets] [svg_prefix] | trace [sample] [max_tets] "
+               "[drop|press] [name=value...]\n");
   return 1;
 }

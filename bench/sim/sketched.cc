@@ -26,17 +26,10 @@ Tick RunRheo(const Scene& sc, int ticks) {
   auto obj = SimObject::Create(sc.mesh, p, Integrator::kImplicitEuler);
   SimObject& s = **obj;
   s.Translate(Vec3(0, sc.drop, 0));
-  std::vector<int32_t> top;
-  double y_max = -1e30;
-  for (const Vec3& x : s.positions()) y_max = std::max(y_max, x.y());
-  for (int32_t i = 0; i < s.model().num_nodes; ++i)
-    if (s.positions()[i].y() > y_max - 0.01) top.push_back(i);
+  const std::vector<int32_t> top = TopNodes(s);
   Tick t;
   for (int k = 0; k < ticks; ++k) {
-    if (sc.press_force > 0) {
-      const double ramp = std::min(1.0, (k * 1e-3) / 0.1);
-      for (int32_t i : top) s.SetExternalForce(i, Vec3(0, -ramp * sc.press_force / top.size(), 0));
-    }
+    ApplyPress(s, sc, top, k, 1e-3);
     const auto t0 = std::chrono::steady_clock::now();
     const StepResult st = s.Step(1e-3);
     t.us.push_back(
