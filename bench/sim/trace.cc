@@ -1,7 +1,7 @@
 // sim_bench trace [sample] [max_tets] [scene] [name=value...]: where a scene's ticks spend their
 // time, in windows of 10 ms: the CPU per tick, the CG iterations, the tets and faces in the linear
 // system, whether the CG's product ran on the assembled edge blocks, and the nodes the floor held.
-// preset=NAME starts from another preset than organ; name=value overrides a parameter.
+// preset=NAME (first) starts from another preset than organ; name=value overrides a parameter.
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -14,6 +14,10 @@ namespace sim_bench {
 
 int Trace(const std::string& sample, int max_tets, const std::string& scene,
           std::span<char* const> sets) {
+  if (scene != "drop" && scene != "press") {
+    std::fprintf(stderr, "sim_bench trace: the scene is drop or press, not '%s'\n", scene.c_str());
+    return 1;
+  }
   Parameters p = FindPreset("organ")->params;
   p.sleep_time = 0.0;
   kMethods[3].Apply(p);
@@ -22,6 +26,10 @@ int Trace(const std::string& sample, int max_tets, const std::string& scene,
     const std::string set = arg;
     const size_t eq = set.find('=');
     if (set.rfind("preset=", 0) == 0) {
+      if (!overrides.empty()) {
+        std::fprintf(stderr, "sim_bench trace: preset= comes before the overrides (%s)\n", arg);
+        return 1;
+      }
       auto preset = FindPreset(set.substr(7));
       if (!preset.ok()) {
         std::fprintf(stderr, "sim_bench trace: %s\n", preset.error().message.c_str());
@@ -54,10 +62,6 @@ int Trace(const std::string& sample, int max_tets, const std::string& scene,
     std::fprintf(stderr,
                  "sim_bench trace: no size of %s within %d tets (the smallest is about 5k)\n",
                  sample.c_str(), max_tets);
-    return 1;
-  }
-  if (scene != "drop" && scene != "press") {
-    std::fprintf(stderr, "sim_bench trace: the scene is drop or press, not '%s'\n", scene.c_str());
     return 1;
   }
   const double dt = 1e-3, t_end = 0.3;
