@@ -59,6 +59,8 @@ struct Scene {
 };
 
 std::vector<Scene> Scenes();
+// The scenes of precision-sizes (and trace) on `mesh`: a 2 cm drop and a 3 N press.
+std::vector<Scene> SizeScenes(const TetMesh& mesh, const Parameters& p);
 
 struct RunResult {
   std::vector<Vec3> x;

@@ -51,6 +51,10 @@ std::vector<Scene> Scenes() {
   return out;
 }
 
+std::vector<Scene> SizeScenes(const TetMesh& mesh, const Parameters& p) {
+  return {Scene{"drop", mesh, p, 0.02, 0.0}, Scene{"press", mesh, p, 0.0, 3.0}};
+}
+
 std::vector<int32_t> TopNodes(const SimObject& s) {
   std::vector<int32_t> top;
   double y_max = -1e30;

@@ -13,9 +13,9 @@
 //   sim_bench budget [sample] [max_tets]  the implicit step's solver settings (preconditioner,
 //                                    kept blocks, iteration cap, tolerance): tick median and tail
 //                                    beside the error against a fine-tick reference, per size
-//   sim_bench trace [sample] [max_tets] [drop|press] [name=value...]  per 10 ms of the
-//   precision-sizes scene
-//                                    (BDF2, 1 ms): CPU, CG iterations, system, floor contact
+//   sim_bench trace [sample] [max_tets] [drop|press] [preset=NAME] [name=value...]
+//                                    per 10 ms of a precision-sizes scene (BDF2, 1 ms): CPU, CG
+//                                    iterations, the system's elements, floor contact
 //   sim_bench multirate [sample] [max_tets]  a press through the renderer: the multi-rate scheme
 //                                    (patch every tick, whole every N) against the full solve
 // One thread throughout (the library has none).
@@ -65,6 +65,6 @@ int main(int argc, char** argv) {
                "cg | params | bullet | sketched [sample] [max_tets] | budget [sample] [max_tets] | "
                "multirate [sample] [max_tets] | "
                "precision-sizes [sample] [max_tets] [svg_prefix] | trace [sample] [max_tets] "
-               "[drop|press] [name=value...]\n");
+               "[drop|press] [preset=NAME] [name=value...]\n");
   return 1;
 }

@@ -160,7 +160,7 @@ int PrecisionSizes(const std::string& sample, int max_tets, const std::string& s
     Parameters p = FindPreset("organ")->params;
     p.sleep_time = 0.0;
     std::vector<Point> pts;
-    for (const Scene& sc : {Scene{"drop", mesh, p, 0.02, 0.0}, Scene{"press", mesh, p, 0.0, 3.0}}) {
+    for (const Scene& sc : SizeScenes(mesh, p)) {
       const RunResult ref = RunScene(sc, kMethods[3], ref_dt, t_end);
       const double size =
           (**SimObject::Create(sc.mesh, sc.params, Integrator::kImplicitEuler)).model().size;

@@ -1,12 +1,12 @@
 // sim_bench trace [sample] [max_tets] [scene] [name=value...]: where a scene's ticks spend their
 // time, in windows of 10 ms: the CPU per tick, the CG iterations, the tets and faces in the linear
 // system, whether the CG's product ran on the assembled edge blocks, and the nodes the floor held.
-// preset=NAME (first) starts from another preset than organ; name=value overrides a parameter.
+// A leading preset=NAME starts from another preset than organ; name=value overrides a parameter.
 #include <algorithm>
 #include <cstdio>
-#include <cstdlib>
 #include <span>
 #include <string>
+#include <string_view>
 
 #include "bench.h"
 
@@ -18,40 +18,34 @@ int Trace(const std::string& sample, int max_tets, const std::string& scene,
     std::fprintf(stderr, "sim_bench trace: the scene is drop or press, not '%s'\n", scene.c_str());
     return 1;
   }
-  Parameters p = FindPreset("organ")->params;
+  // A leading preset=NAME picks the preset; the rest are name=value overrides over it.
+  std::string preset_name = "organ";
+  if (!sets.empty() && std::string_view(sets.front()).starts_with("preset=")) {
+    preset_name = sets.front() + 7;
+    sets = sets.subspan(1);
+  }
+  auto preset = FindPreset(preset_name);
+  if (!preset.ok()) {
+    std::fprintf(stderr, "sim_bench trace: %s\n", preset.error().message.c_str());
+    return 1;
+  }
+  Parameters p = preset->params;
   p.sleep_time = 0.0;
   kMethods[3].Apply(p);
   std::string overrides;
   for (const char* arg : sets) {
-    const std::string set = arg;
-    const size_t eq = set.find('=');
-    if (set.rfind("preset=", 0) == 0) {
-      if (!overrides.empty()) {
-        std::fprintf(stderr, "sim_bench trace: preset= comes before the overrides (%s)\n", arg);
-        return 1;
-      }
-      auto preset = FindPreset(set.substr(7));
-      if (!preset.ok()) {
-        std::fprintf(stderr, "sim_bench trace: %s\n", preset.error().message.c_str());
-        return 1;
-      }
-      p = preset->params;
-      p.sleep_time = 0.0;
-      kMethods[3].Apply(p);
-      overrides += " " + set;
-      continue;
-    }
-    char* end = nullptr;
-    const double value = eq == std::string::npos ? 0.0 : std::strtod(set.c_str() + eq + 1, &end);
-    if (eq == std::string::npos || end == set.c_str() + eq + 1 || *end != '\0') {
-      std::fprintf(stderr, "sim_bench trace: '%s' is not name=value\n", arg);
+    std::string name;
+    double value = 0.0;
+    if (!ParseSetting(arg, &name, &value)) {
+      std::fprintf(stderr, "sim_bench trace: '%s' is not name=number (preset=NAME comes first)\n",
+                   arg);
       return 1;
     }
-    if (rheo::Status st = SetParameterByName(p, set.substr(0, eq), value); !st.ok()) {
+    if (rheo::Status st = SetParameterByName(p, name, value); !st.ok()) {
       std::fprintf(stderr, "sim_bench trace: %s\n", st.error().message.c_str());
       return 1;
     }
-    overrides += " " + set;
+    overrides += std::string(" ") + arg;
   }
   auto meshes = MeshSampleSizes(sample, max_tets);
   if (!meshes.ok()) {
@@ -67,15 +61,15 @@ int Trace(const std::string& sample, int max_tets, const std::string& scene,
   const double dt = 1e-3, t_end = 0.3;
   const int window = 10;
   std::printf(
-      "# samples/%s.json, organ preset unless overridden, implicit BDF2, 1 ms ticks, 0.3 s of the "
-      "%s scene of "
+      "# samples/%s.json, %s preset, implicit BDF2, 1 ms ticks, 0.3 s of the %s scene of "
       "precision-sizes;\n# per window of %d ticks: CPU per tick (mean, max), CG iterations per "
       "tick (mean, max), the tets and faces\n# in the system, the ticks whose product ran on "
       "the assembled edge blocks, and the floor's held nodes (mean).\n# overrides:%s\n",
-      sample.c_str(), scene.c_str(), window, overrides.empty() ? " none" : overrides.c_str());
+      sample.c_str(), preset_name.c_str(), scene.c_str(), window,
+      overrides.empty() ? " none" : overrides.c_str());
   for (const TetMesh& mesh : meshes->meshes) {
-    const Scene sc{scene == "drop" ? "drop" : "press", mesh, p, scene == "drop" ? 0.02 : 0.0,
-                   scene == "press" ? 3.0 : 0.0};
+    const std::vector<Scene> scenes = SizeScenes(mesh, p);
+    const Scene& sc = scene == "drop" ? scenes[0] : scenes[1];
     auto created = SimObject::Create(mesh, p, Integrator::kImplicitEuler);
     if (!created.ok()) {
       std::fprintf(stderr, "sim_bench trace: %s\n", created.error().message.c_str());
